@@ -1,0 +1,68 @@
+"""Hypothesis profiles: ``dev``, ``ci`` (``make test``) and ``certify`` (SR-EVD-3).
+
+Registered when the evidence plugin is imported, i.e. before pytest parses
+``--hypothesis-profile``. ``ci`` and ``certify`` are derandomized and keep no example database,
+so two machines run the same examples; ``certify`` runs many more of them and prints the
+reproduce blob of any failure. :func:`examples` scales a property's own budget by profile for
+the few properties that need more (fuzzers) or fewer (expensive oracles) than the default.
+"""
+
+from __future__ import annotations
+
+from hypothesis import HealthCheck, Phase, Verbosity, settings
+
+__all__ = ["PROFILES", "active_profile", "examples", "register_profiles"]
+
+PROFILES: dict[str, dict[str, object]] = {
+    "dev": {"max_examples": 50, "deadline": None, "print_blob": True},
+    "ci": {
+        "max_examples": 100,
+        "deadline": None,
+        "derandomize": True,
+        "database": None,
+        "print_blob": True,
+        "suppress_health_check": [HealthCheck.too_slow],
+    },
+    "certify": {
+        "max_examples": 1000,
+        "deadline": None,
+        "derandomize": True,
+        "database": None,
+        "print_blob": True,
+        "verbosity": Verbosity.normal,
+        "phases": [Phase.explicit, Phase.reuse, Phase.generate, Phase.target, Phase.shrink],
+        "suppress_health_check": [HealthCheck.too_slow],
+    },
+}
+
+# How much each profile multiplies a property's own example budget.
+_SCALE = {"dev": 0.5, "ci": 1.0, "certify": 10.0}
+
+_active = "default"
+
+
+def register_profiles() -> None:
+    """Register the three profiles with Hypothesis (idempotent)."""
+    for name, options in PROFILES.items():
+        settings.register_profile(name, **options)  # type: ignore[arg-type]
+
+
+def set_active_profile(name: str) -> None:
+    """Remember which profile this session loaded (the plugin calls this)."""
+    global _active
+    _active = name
+
+
+def active_profile() -> str:
+    """The profile name this session runs under (``default`` when none was chosen)."""
+    return _active
+
+
+def examples(ci: int) -> int:
+    """A property's example budget under the active profile, given its budget under ``ci``.
+
+    ``dev`` halves it, ``certify`` multiplies it by ten; ``default`` keeps it.
+    """
+    if ci < 1:
+        raise ValueError(f"examples: ci budget must be >= 1, got {ci}")
+    return max(1, int(ci * _SCALE.get(_active, 1.0)))

@@ -1,0 +1,407 @@
+"""Validated configuration of the whole pipeline, one section per stage (requirement SR-CFG-*).
+
+The defaults live here, in code; a TOML file given with ``--config FILE`` overrides any subset
+of them (a table per section, e.g. ``[cluster] eps_m = 0.2``). Every field carries its unit in
+its name. Validation is strict: an unknown key, a wrong type or a value outside its allowed
+range raises :class:`~pipeline.errors.ConfigError` whose lines each name the key, the value and
+what is allowed. :func:`config_hash` is a stable SHA-256 over the canonical JSON form of the
+values, recorded in every evidence bundle and audit log.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal, Self
+
+from annotated_types import Ge, Gt, Le, Lt
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic.fields import FieldInfo
+
+from pipeline.errors import ConfigError
+
+__all__ = [
+    "SafecaseConfig",
+    "config_hash",
+    "default_config",
+    "load_config",
+    "overridden",
+    "to_toml",
+    "validate_config",
+]
+
+
+class _Section(BaseModel):
+    """Base of every section: frozen, no unknown keys, no silent coercion of strings."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", strict=True, validate_default=True)
+
+
+class DriverSection(_Section):
+    """Serial LiDAR transport (requirements SR-DRV-*)."""
+
+    protocol: Literal["rplidar", "scip"] = "rplidar"
+    port_url: str = Field("", description="pyserial URL or device path; empty: no device")
+    baudrate_bps: int = Field(115200, ge=9600, le=4_000_000)
+    read_timeout_s: float = Field(0.05, gt=0.0, le=5.0)
+    silent_timeout_s: float = Field(0.5, gt=0.0, le=30.0)
+    reconnect_backoff_s: float = Field(0.2, ge=0.0, le=30.0)
+    max_reconnects: int = Field(10, ge=0, le=10_000)
+
+
+class ScanSection(_Section):
+    """Scan sanitation before clustering (requirement SR-TRK-*, SR-DRV-*)."""
+
+    min_range_m: float = Field(0.05, ge=0.0, le=10.0)
+    max_range_m: float = Field(30.0, gt=0.0, le=200.0)
+    max_beams: int = Field(2048, ge=16, le=16384)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.min_range_m >= self.max_range_m:
+            raise ValueError(
+                f"scan.min_range_m ({self.min_range_m}) must be below "
+                f"scan.max_range_m ({self.max_range_m})"
+            )
+        return self
+
+
+class ClusterSection(_Section):
+    """DBSCAN on scan points (source: eps 0.15 m, min_samples 3, 4..200 points)."""
+
+    eps_m: float = Field(0.15, gt=0.0, le=2.0)
+    min_samples: int = Field(3, ge=1, le=100)
+    min_points: int = Field(4, ge=1, le=10_000)
+    max_points: int = Field(200, ge=1, le=10_000)
+    max_clusters: int = Field(64, ge=1, le=1024)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.min_points > self.max_points:
+            raise ValueError(
+                f"cluster.min_points ({self.min_points}) must not exceed "
+                f"cluster.max_points ({self.max_points})"
+            )
+        return self
+
+
+class TrackSection(_Section):
+    """Kalman tracking and re-identification (source material numbers; SR-TRK-*)."""
+
+    frame_period_s: float = Field(0.1, gt=0.0, le=1.0)
+    history_frames: int = Field(15, ge=2, le=1000)
+    decel_window_s: float = Field(0.5, gt=0.0, le=10.0)
+    size_variance_frames: int = Field(10, ge=2, le=1000)
+    process_accel_std_mps2: float = Field(1.0, gt=0.0, le=50.0)
+    measurement_std_m: float = Field(0.05, gt=0.0, le=5.0)
+    gate_euclidean_m: float = Field(2.0, gt=0.0, le=50.0)
+    gate_mahalanobis_chi2: float = Field(9.21, gt=0.0, le=1000.0)
+    confirm_hits: int = Field(3, ge=1, le=100)
+    lost_after_misses: int = Field(2, ge=1, le=100)
+    dormant_after_misses: int = Field(5, ge=1, le=1000)
+    dormant_timeout_frames: int = Field(50, ge=1, le=100_000)
+    dormant_gate_factor: float = Field(3.0, ge=1.0, le=100.0)
+    dormant_size_tolerance_frac: float = Field(0.3, ge=0.0, le=10.0)
+    max_dormant: int = Field(50, ge=0, le=10_000)
+    dormant_prediction_cap_s: float = Field(3.0, ge=0.0, le=60.0)
+    max_tracks: int = Field(64, ge=1, le=10_000)
+    reid_enabled: bool = True
+
+
+class ClassifySection(_Section):
+    """Gradient-boosted tree classifier (source: depth 6, 150 estimators; SR-CLS-*)."""
+
+    model_path: str = Field("", description="model file; empty: the packaged model")
+    max_depth: int = Field(6, ge=1, le=16)
+    n_estimators: int = Field(150, ge=1, le=5000)
+    train_seed: int = Field(0, ge=0, le=2**32 - 1)
+    high_confidence_min: float = Field(0.8, gt=0.0, le=1.0)
+    medium_confidence_min: float = Field(0.5, gt=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.medium_confidence_min > self.high_confidence_min:
+            raise ValueError(
+                f"classify.medium_confidence_min ({self.medium_confidence_min}) must not "
+                f"exceed classify.high_confidence_min ({self.high_confidence_min})"
+            )
+        return self
+
+
+class PredictSection(_Section):
+    """Motion prediction (source: 1.5 s horizon, +/-15 deg cone, reversal at 0.6 m/s)."""
+
+    horizon_s: float = Field(1.5, gt=0.0, le=10.0)
+    step_s: float = Field(0.1, gt=0.0, le=1.0)
+    cone_half_angle_deg: float = Field(15.0, ge=0.0, le=90.0)
+    reversal_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
+    near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
+    near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
+
+
+class StoppingSection(_Section):
+    """Stopping-distance model and margin tiers (SR-STOP-*).
+
+    Braking 0.2-0.4 m at 1.0 m/s in the source gives b = v^2 / (2 d) in [1.25, 2.5] m/s^2.
+    """
+
+    perception_latency_s: float = Field(0.08, ge=0.0, le=2.0)
+    latency_source: str = Field("config", description="where perception_latency_s came from")
+    control_cycle_s: float = Field(0.1, gt=0.0, le=1.0)
+    decel_min_mps2: float = Field(1.25, gt=0.0, le=20.0)
+    decel_max_mps2: float = Field(2.5, gt=0.0, le=20.0)
+    accel_max_mps2: float = Field(0.5, ge=0.0, le=20.0)
+    robot_max_speed_mps: float = Field(1.0, gt=0.0, le=10.0)
+    margin_high_m: float = Field(0.4, ge=0.0, le=20.0)
+    margin_medium_m: float = Field(0.7, ge=0.0, le=20.0)
+    margin_near_reversal_m: float = Field(1.0, ge=0.0, le=20.0)
+    person_speed_mps: float = Field(1.6, ge=0.0, le=10.0)
+    forklift_reversing_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
+    static_speed_mps: float = Field(0.0, ge=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.decel_min_mps2 > self.decel_max_mps2:
+            raise ValueError(
+                f"stopping.decel_min_mps2 ({self.decel_min_mps2}) must not exceed "
+                f"stopping.decel_max_mps2 ({self.decel_max_mps2})"
+            )
+        return self
+
+
+class GovernorSection(_Section):
+    """Speed governor (SR-STOP-*)."""
+
+    slow_fraction: float = Field(0.5, gt=0.0, le=1.0)
+    min_moving_speed_mps: float = Field(0.05, ge=0.0, le=1.0)
+
+
+class GeometrySection(_Section):
+    """Swept-path collision checking (SR-SAT-*)."""
+
+    pregate_m: float = Field(20.0, gt=0.0, le=1000.0)
+    sample_dt_s: float = Field(0.1, gt=0.0, le=1.0)
+    n_trajectories: int = Field(175, ge=1, le=10_000)
+    max_vertices: int = Field(32, ge=3, le=1024)
+    contact_tolerance_m: float = Field(1e-9, ge=0.0, le=1e-3)
+
+
+class CostmapSection(_Section):
+    """Grid costmap of envelopes (SR-PRED-*)."""
+
+    resolution_m: float = Field(0.05, gt=0.0, le=1.0)
+    width_m: float = Field(20.0, gt=0.0, le=500.0)
+    height_m: float = Field(20.0, gt=0.0, le=500.0)
+
+
+class FusionSection(_Section):
+    """Thermal / radar / second-LiDAR fusion with freshness (SR-FUS-*)."""
+
+    thermal_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
+    radar_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
+    gate_m: float = Field(2.0, gt=0.0, le=50.0)
+    confidence_boost: float = Field(0.2, ge=0.0, le=1.0)
+
+
+class MonitorSection(_Section):
+    """Runtime monitors: staleness, deadline, operating domain (SR-FUS-*, SR-TIM-*)."""
+
+    scan_max_age_s: float = Field(0.25, gt=0.0, le=10.0)
+    cycle_deadline_s: float = Field(0.1, gt=0.0, le=10.0)
+    max_clock_jump_back_s: float = Field(0.0, ge=0.0, le=10.0)
+
+
+class SimSection(_Section):
+    """Built-in simulator defaults (SR-SIM-*)."""
+
+    scenario: str = Field("reversing_forklift_aisle", min_length=1)
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    beams: int = Field(1080, ge=16, le=16384)
+    duration_s: float = Field(20.0, gt=0.0, le=36_000.0)
+
+
+class AuditSection(_Section):
+    """Hash-chained audit log (SR-AUD-*)."""
+
+    log_dir: str = "out/audit"
+    fsync_every_records: int = Field(10, ge=1, le=1_000_000)
+
+
+class SafecaseConfig(_Section):
+    """The whole configuration: one section per stage of the data path."""
+
+    driver: DriverSection = DriverSection()
+    scan: ScanSection = ScanSection()
+    cluster: ClusterSection = ClusterSection()
+    track: TrackSection = TrackSection()
+    classify: ClassifySection = ClassifySection()
+    predict: PredictSection = PredictSection()
+    stopping: StoppingSection = StoppingSection()
+    governor: GovernorSection = GovernorSection()
+    geometry: GeometrySection = GeometrySection()
+    costmap: CostmapSection = CostmapSection()
+    fusion: FusionSection = FusionSection()
+    monitors: MonitorSection = MonitorSection()
+    sim: SimSection = SimSection()
+    audit: AuditSection = AuditSection()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _reject_non_finite(cls, data: Any) -> Any:
+        # pydantic accepts nan/inf for plain float fields with no bound; no safety parameter
+        # may be non-finite, so reject them here with the key named.
+        if isinstance(data, Mapping):
+            for section, values in data.items():
+                if isinstance(values, Mapping):
+                    for key, value in values.items():
+                        if isinstance(value, float) and not math.isfinite(value):
+                            raise ConfigError(
+                                [f"{section}.{key} = {value!r}: allowed: a finite number"]
+                            )
+        return data
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a JSON string is a valid TOML basic string
+    raise TypeError(f"to_toml: cannot write {type(value).__name__} value {value!r}")
+
+
+def to_toml(data: Mapping[str, Mapping[str, Any]]) -> str:
+    """Write section tables of scalars as TOML (what ``load_config`` reads back)."""
+    lines: list[str] = []
+    for section, values in data.items():
+        lines.append(f"[{section}]")
+        lines.extend(f"{key} = {_toml_value(value)}" for key, value in values.items())
+        lines.append("")
+    return "\n".join(lines)
+
+
+def default_config() -> SafecaseConfig:
+    """The built-in configuration (every default from code)."""
+    return SafecaseConfig()
+
+
+def config_hash(config: SafecaseConfig) -> str:
+    """Stable SHA-256 (hex) of the configuration's values, independent of key order."""
+    canonical = json.dumps(
+        config.model_dump(mode="json"), sort_keys=True, separators=(",", ":"), allow_nan=False
+    )
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def _field_info(loc: tuple[int | str, ...]) -> FieldInfo | None:
+    model: type[BaseModel] = SafecaseConfig
+    info: FieldInfo | None = None
+    for part in loc:
+        if not isinstance(part, str) or part not in model.model_fields:
+            return None
+        info = model.model_fields[part]
+        annotation = info.annotation
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            model = annotation
+    return info
+
+
+def _allowed(loc: tuple[int | str, ...], err_type: str) -> str:
+    """Describe what a key accepts, from the field's own declaration."""
+    if err_type == "extra_forbidden":
+        parent: type[BaseModel] = SafecaseConfig
+        for part in loc[:-1]:
+            info = parent.model_fields.get(str(part))
+            if info is None or not (
+                isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)
+            ):
+                break
+            parent = info.annotation
+        return "one of the keys " + ", ".join(sorted(parent.model_fields))
+    info = _field_info(loc)
+    if info is None:
+        return "see `safecase config show` for the keys and defaults"
+    bounds: list[str] = []
+    for meta in info.metadata:
+        if isinstance(meta, Ge):
+            bounds.append(f">= {meta.ge}")
+        elif isinstance(meta, Gt):
+            bounds.append(f"> {meta.gt}")
+        elif isinstance(meta, Le):
+            bounds.append(f"<= {meta.le}")
+        elif isinstance(meta, Lt):
+            bounds.append(f"< {meta.lt}")
+    annotation = info.annotation
+    kind = {"float": "number", "int": "integer", "str": "string", "bool": "boolean"}.get(
+        getattr(annotation, "__name__", ""), str(annotation)
+    )
+    article = "an" if kind[:1] in "aeiou" else "a"
+    if getattr(annotation, "__origin__", None) is Literal:
+        return "one of " + ", ".join(repr(a) for a in annotation.__args__)  # type: ignore[union-attr]
+    if bounds:
+        return f"{article} {kind} " + " and ".join(bounds)
+    return f"{article} {kind}"
+
+
+def _format_errors(error: ValidationError, origin: str) -> list[str]:
+    lines = []
+    for item in error.errors(include_url=False):
+        loc = tuple(item["loc"])
+        key = ".".join(str(p) for p in loc) or "<top level>"
+        value = item.get("input")
+        shown = "<missing>" if item["type"] == "missing" else repr(value)
+        if item["type"] == "extra_forbidden":
+            lines.append(f"{origin}: unknown key {key}; allowed: {_allowed(loc, item['type'])}")
+            continue
+        message = str(item["msg"])
+        if item["type"] == "value_error" and "ctx" in item:
+            lines.append(f"{origin}: {message.removeprefix('Value error, ')}")
+            continue
+        lines.append(
+            f"{origin}: {key} = {shown}: {message}; allowed: {_allowed(loc, item['type'])}"
+        )
+    return lines
+
+
+def validate_config(data: Mapping[str, Any], origin: str = "config") -> SafecaseConfig:
+    """Build a :class:`SafecaseConfig` from nested mappings (sections of keys).
+
+    Raises :class:`ConfigError` naming every bad key, its value and what is allowed.
+    """
+    try:
+        return SafecaseConfig.model_validate(dict(data))
+    except ConfigError as exc:
+        raise ConfigError([f"{origin}: {line}" for line in exc.lines]) from None
+    except ValidationError as exc:
+        raise ConfigError(_format_errors(exc, origin)) from None
+
+
+def load_config(path: Path | str | None = None) -> SafecaseConfig:
+    """Load the defaults, overridden by the TOML file at ``path`` when given (SR-CFG-1)."""
+    if path is None:
+        return default_config()
+    file = Path(path)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError([f"{file}: cannot read the configuration file: {exc.strerror}"]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError([f"{file}: not valid TOML: {exc}"]) from None
+    return validate_config(data, origin=str(file))
+
+
+def overridden(config: SafecaseConfig, updates: Mapping[str, Mapping[str, Any]]) -> SafecaseConfig:
+    """A copy of ``config`` with section values replaced, validated like a file would be."""
+    data: dict[str, Any] = config.model_dump(mode="python")
+    for section, values in updates.items():
+        merged = dict(data.get(section, {}))
+        merged.update(values)
+        data[section] = merged
+    return validate_config(data, origin="override")

@@ -1,0 +1,123 @@
+"""The ``safecase`` command line, run as a real subprocess."""
+
+from __future__ import annotations
+
+import base64
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+from rich.console import Console
+
+from evidence.manifest import SIGNATURE, write_manifest
+from evidence.run import run_certification
+
+SAFECASE = [sys.executable, "-m", "safety"]
+
+
+def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="200")
+    return subprocess.run(
+        [*SAFECASE, *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=cwd,
+        timeout=120,
+        check=False,
+    )
+
+
+@pytest.mark.requirement("SR-CFG-1", kind="example")
+def test_invalid_config_exits_2_with_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[cluster]\neps_m = -0.15\n")
+    done = _run("config", "check", str(bad))
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert lines == [
+        f"config error: {bad}: cluster.eps_m = -0.15: Input should be greater than 0; "
+        "allowed: a number > 0.0 and <= 2.0"
+    ]
+    done = _run("certify", "--config", str(bad))
+    assert done.returncode == 2
+    assert "cluster.eps_m = -0.15" in done.stderr
+
+
+def test_config_show_round_trips(tmp_path: Path) -> None:
+    shown = _run("config", "show")
+    assert shown.returncode == 0
+    (tmp_path / "c.toml").write_text(shown.stdout)
+    checked = _run("config", "check", str(tmp_path / "c.toml"))
+    assert checked.returncode == 0
+    assert shown.stdout.splitlines()[0].split()[-1] in checked.stdout
+
+
+@pytest.mark.requirement("SR-EVD-1", kind="example")
+def test_evidence_verify_names_changes_and_wrong_signatures(tmp_path: Path) -> None:
+    bundle = tmp_path / "b"
+    bundle.mkdir()
+    (bundle / "evidence.json").write_text("{}\n")
+    (bundle / "report.html").write_text("<html></html>\n")
+    key = Ed25519PrivateKey.from_private_bytes(bytes(range(32)))
+    write_manifest(bundle, {"config_hash": "x"}, key)
+    ok = _run("evidence", "verify", str(bundle))
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert ok.stdout.startswith("OK: 2 files match")
+
+    (bundle / "report.html").write_text("<html>changed</html>\n")
+    bad = _run("evidence", "verify", str(bundle))
+    assert bad.returncode == 1
+    assert "FAIL changed: report.html" in bad.stdout
+
+    write_manifest(bundle, {"config_hash": "x"}, key)
+    other = Ed25519PrivateKey.from_private_bytes(bytes(range(1, 33)))
+    manifest = (bundle / "manifest.json").read_bytes()
+    (bundle / SIGNATURE).write_bytes(base64.b64encode(other.sign(manifest)))
+    bad = _run("evidence", "verify", str(bundle))
+    assert bad.returncode == 1
+    assert "signature does not match" in bad.stdout
+
+
+def test_version_and_help() -> None:
+    done = _run("--version")
+    assert done.returncode == 0
+    assert done.stdout.startswith("safecase ")
+    helped = _run("--help")
+    assert "certify" in helped.stdout
+    assert "evidence" in helped.stdout
+
+
+def test_run_certification_writes_a_signed_bundle(tmp_path: Path) -> None:
+    root = tmp_path / "project"
+    (root / "properties").mkdir(parents=True)
+    (root / "tests").mkdir()
+    (root / "properties" / "test_p.py").write_text(
+        "import pytest\n\n@pytest.mark.requirement('SR-EVD-3')\ndef test_a():\n    pass\n"
+    )
+    (root / "tests" / "test_t.py").write_text("def test_b():\n    assert 1 + 1 == 2\n")
+    console = Console(file=open(os.devnull, "w"))  # noqa: SIM115 - closed with the process
+    result = run_certification(
+        root=root,
+        bundle_dir=tmp_path / "bundle",
+        config_path=None,
+        profile="dev",
+        key=tmp_path / "key.pem",
+        select=None,
+        benchmarks=False,
+        console=console,
+    )
+    assert result.bundle is not None
+    assert {t.nodeid for t in result.bundle.tests} == {
+        "properties/test_p.py::test_a",
+        "tests/test_t.py::test_b",
+    }
+    # The real catalogue has claimed requirements this tiny project does not evidence.
+    assert result.exit_code == 1
+    assert "SR-EVD-1" in result.bundle.summary["blocking_requirements"]
+    assert (tmp_path / "bundle" / "manifest.json").is_file()
+    verified = _run("evidence", "verify", str(tmp_path / "bundle"))
+    assert verified.returncode == 0, verified.stdout
