@@ -84,6 +84,13 @@ def test_fact(evidence):
     evidence.count("examples", "checked", 3)
     evidence.samples("latency", [0.001, 0.002, 0.003], unit="s")
     evidence.table("t", ["a", "b"], [[1, 2]])
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    evidence.plot("diagonal", fig, caption="a line")
+    plt.close(fig)
 
 @pytest.mark.requirement("SR-X-3")
 def test_planned_but_tested():
@@ -169,8 +176,11 @@ def test_verdicts_satisfied_not_evidenced_and_planned(pytester: pytest.Pytester)
     assert prop["hypothesis"]["seed"].startswith("derandomized")
     fact = next(t for t in data["tests"] if t["nodeid"].endswith("test_fact"))
     types = [d["type"] for d in fact["details"]]
-    assert types == ["smt", "samples", "table", "counts"]
-    assert (out / "smt").is_dir()
+    assert types == ["smt", "samples", "table", "plot", "counts"]
+    assert len(list((out / "smt").glob("*.smt2"))) == 1
+    (png,) = (out / "plots").glob("*.png")
+    assert png.read_bytes().startswith(b"\x89PNG")
+    assert 'src="data:image/png;base64,' in (out / "report.html").read_text()
     assert "safecase requirements" in result.stdout.str()
 
 
