@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from evidence.model import Bundle
@@ -63,7 +64,9 @@ class _ProgressPlugin:
             self.failed.append(report.nodeid)
             last = str(report.longreprtext).strip().splitlines()
             self.progress.console.print(
-                f"[bold red]FAILED[/] {report.nodeid} ({report.when}): {last[-1] if last else ''}",
+                # Escaped: a parametrised node ID such as test_x[high] is not rich markup.
+                f"[bold red]FAILED[/] {escape(report.nodeid)} ({report.when}): "
+                f"{escape(last[-1]) if last else ''}",
                 highlight=False,
             )
         if report.when == "teardown":

@@ -143,10 +143,18 @@ class PredictSection(_Section):
     near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
 
 
+ClosingClassName = Literal["static", "person", "forklift_reversing"]
+
+
 class StoppingSection(_Section):
-    """Stopping-distance model and margin tiers (SR-STOP-*).
+    """Stopping-distance model, margin tiers and their speed caps (SR-STOP-*).
 
     Braking 0.2-0.4 m at 1.0 m/s in the source gives b = v^2 / (2 d) in [1.25, 2.5] m/s^2.
+    The reaction latency is ``perception_latency_s + control_cycle_s``; ``latency_source``
+    records where the perception bound came from (a measured p99/pWCET later). Each tier's
+    margin must absorb the closing speed of its ``closing_class_*`` during the whole stop. The
+    default speed caps are the largest speeds each tier's margin covers in the worst case
+    (computed and proved by properties/test_stopping.py), rounded down to 1 mm/s.
     """
 
     perception_latency_s: float = Field(0.08, ge=0.0, le=2.0)
@@ -159,6 +167,12 @@ class StoppingSection(_Section):
     margin_high_m: float = Field(0.4, ge=0.0, le=20.0)
     margin_medium_m: float = Field(0.7, ge=0.0, le=20.0)
     margin_near_reversal_m: float = Field(1.0, ge=0.0, le=20.0)
+    speed_cap_high_mps: float = Field(0.719, ge=0.0, le=10.0)
+    speed_cap_medium_mps: float = Field(1.0, ge=0.0, le=10.0)
+    speed_cap_near_reversal_mps: float = Field(0.796, ge=0.0, le=10.0)
+    closing_class_high: ClosingClassName = "static"
+    closing_class_medium: ClosingClassName = "static"
+    closing_class_near_reversal: ClosingClassName = "forklift_reversing"
     person_speed_mps: float = Field(1.6, ge=0.0, le=10.0)
     forklift_reversing_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
     static_speed_mps: float = Field(0.0, ge=0.0, le=10.0)
@@ -174,9 +188,8 @@ class StoppingSection(_Section):
 
 
 class GovernorSection(_Section):
-    """Speed governor (SR-STOP-*)."""
+    """Speed governor (SR-STOP-2): a speed below ``min_moving_speed_mps`` becomes STOP."""
 
-    slow_fraction: float = Field(0.5, gt=0.0, le=1.0)
     min_moving_speed_mps: float = Field(0.05, ge=0.0, le=1.0)
 
 
