@@ -40,8 +40,14 @@ Verdict = Literal["harmless", "detected", "undetected"]
 
 UTM_30LX = scip.ScipParams()
 URG_04LX = scip.ScipParams(
-    model="URG-04LX(Hokuyo Automatic Co.,Ltd.)", dmin_mm=20, dmax_mm=5600, ares=1024,
-    amin=44, amax=725, afrt=384, scan_rpm=600,
+    model="URG-04LX(Hokuyo Automatic Co.,Ltd.)",
+    dmin_mm=20,
+    dmax_mm=5600,
+    ares=1024,
+    amin=44,
+    amax=725,
+    afrt=384,
+    scan_rpm=600,
 )
 
 
@@ -61,7 +67,7 @@ def link_scans(draw: st.DrawFn, link: Link, count: int = 3) -> list[Scan]:
         n = draw(st.integers(160, 720), label="beams")
         for _ in range(count):
             step = 2 * np.pi / n
-            angles = -(np.arange(n) + rng.uniform(-0.05, 0.05, n)) * step
+            angles = -(np.arange(n) + rng.uniform(-0.05, 0.05, n)).astype(np.float64) * step
             angles[0] = 0.0
             ranges = rng.uniform(0.02, 16.0, n)
             ranges[rng.random(n) < 0.1] = np.nan
@@ -74,7 +80,8 @@ def link_scans(draw: st.DrawFn, link: Link, count: int = 3) -> list[Scan]:
     for _ in range(count):
         ranges = np.rint(rng.uniform(params.dmin_mm, limit, steps.shape[0])) / 1000.0
         ranges[rng.random(steps.shape[0]) < 0.1] = np.nan
-        scans.append(Scan(0.0, (steps - params.afrt) * params.step_rad, ranges))
+        angles = (steps - params.afrt).astype(np.float64) * params.step_rad
+        scans.append(Scan(0.0, angles, ranges))
     return scans
 
 

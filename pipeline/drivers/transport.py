@@ -64,6 +64,7 @@ class Driver:
         self._pending = b""
         now = clock()
         self._last_frame_s = now
+        self._watch_s = now  # silence is measured from the last frame or (re)connection
         self._last_reject_s = -float("inf")
         self._retry_at = now
         self._attempts = 0  # consecutive failed (re)connection attempts
@@ -119,6 +120,7 @@ class Driver:
             self._retry_at = self.clock() + self.config.reconnect_backoff_s
             return
         self.session = session
+        self._watch_s = max(self._last_frame_s, self.clock())
         self._link = link
         self._stream = session.stream
         self._pending = session.leftover
@@ -154,7 +156,7 @@ class Driver:
         link, stream = self._link, self._stream
         assert link is not None
         assert stream is not None
-        silent_at = self._last_frame_s + self.config.silent_timeout_s
+        silent_at = self._watch_s + self.config.silent_timeout_s
         wait = max(0.0, min(wait, silent_at - now + 1e-3))
         try:
             data = self._pending + link.read(wait)
@@ -166,12 +168,12 @@ class Driver:
         ok, rejected = self.counters.frames_ok, self.counters.frames_rejected
         scans = stream.feed(data, now) if data else []
         if self.counters.frames_ok > ok:
-            self._last_frame_s = now
+            self._last_frame_s = self._watch_s = now
             self._attempts = 0
             self._connecting = False
         if self.counters.frames_rejected > rejected:
             self._last_reject_s = now
-        age = now - self._last_frame_s
+        age = now - self._watch_s
         if age > self.config.silent_timeout_s:
             self._lose(
                 now,
