@@ -40,6 +40,8 @@ __all__ = [
     "encode_info_lines",
     "encode_response",
     "encode_values",
+    "info_response",
+    "line_ok",
     "scan_to_values",
     "values_to_scan",
 ]
@@ -285,9 +287,8 @@ def decode_data_lines(
 
 # ------------------------------------------------------------------------ info responses
 def encode_info_lines(items: dict[str, str]) -> list[bytes]:
-    """``KEY:value;`` payloads; the checksum (added by :func:`encode_response`) must cover
-    ``KEY:value`` only, so the ``;`` is appended after it by the caller: see
-    :func:`info_response`."""
+    """The ``KEY:value`` payloads of an info answer, before the ``;`` and the checksum
+    that :func:`info_response` appends to each."""
     return [f"{key}:{value}".encode() for key, value in items.items()]
 
 
