@@ -231,17 +231,17 @@ class Emulator:
         next_rev_s: float,
     ) -> None:
         writing = bool(out) and now >= quiet_until
-        # Sleep until the next thing to do, but never long: commands must be answered.
+        # Sleep until the next thing to do (select also wakes when the pty can take more
+        # bytes or a command arrives), never longer than 50 ms, and never spin.
         wake = now + 0.05
+        room = len(out) < _HIGH_WATER
         if now < quiet_until:
             wake = min(wake, quiet_until)
-        elif pending:
+        elif pending and room:
             wake = min(wake, pending[0][0]) if self.realtime else now
-        elif self.device.scanning and not self.exhausted.is_set():
+        elif self.device.scanning and room and not pending and not self.exhausted.is_set():
             wake = min(wake, next_rev_s) if self.realtime else now
-        timeout = 0.0 if writing and not pending else max(0.0, wake - now)
-        if writing:
-            timeout = min(timeout, 0.05)
+        timeout = max(0.0, wake - now)
         master = self._master
         readable, writable, _ = select.select([master], [master] if writing else [], [], timeout)
         if readable:

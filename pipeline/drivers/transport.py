@@ -20,6 +20,8 @@ from collections.abc import Callable, Iterator
 import serial
 
 from pipeline.config import DriverSection
+from pipeline.drivers import rplidar as rp
+from pipeline.drivers import scip
 from pipeline.drivers.assembly import LinkCounters
 from pipeline.drivers.errors import DriverError, LinkError
 from pipeline.drivers.rplidar_stream import RplidarStream
@@ -84,7 +86,11 @@ class Driver:
         """Stop the device (best effort) and close the port."""
         link = self._link
         if link is not None:
-            stop = b"\xa5\x25" if self.config.protocol == "rplidar" else b"QT\n"
+            stop = (
+                rp.encode_request(rp.Cmd.STOP)
+                if self.config.protocol == "rplidar"
+                else scip.ScipCommand(scip.Name.QT).encode()
+            )
             with contextlib.suppress(LinkError):
                 link.write(stop)
             link.close()
