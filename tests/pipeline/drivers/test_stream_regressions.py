@@ -18,7 +18,7 @@ STREAMS = ["pipeline/drivers/rplidar_stream.py", "pipeline/drivers/scip_stream.p
 
 def _rplidar_scans(n: int = 360) -> list[Scan]:
     rng = np.random.default_rng(9)
-    angles = -np.arange(n) * (2 * np.pi / n)
+    angles = -np.arange(n, dtype=np.float64) * (2 * np.pi / n)
     return [
         Scan(0.0, angles, rng.uniform(0.5, 8.0, n), rng.integers(1, 64, n).astype(float))
         for _ in range(3)
@@ -52,7 +52,11 @@ def test_scip_lines_after_a_merged_line_keep_their_positions() -> None:
     steps = np.arange(0, 1081)
     rng = np.random.default_rng(10)
     scans = [
-        Scan(0.0, (steps - 540) * (2 * np.pi / 1440), np.rint(rng.uniform(100, 20000, 1081)) / 1000)
+        Scan(
+            0.0,
+            (steps - 540).astype(np.float64) * (2 * np.pi / 1440),
+            np.rint(rng.uniform(100, 20000, 1081)) / 1000,
+        )
         for _ in range(2)
     ]
     frames = device_frames("scip-md", scans)
