@@ -42,7 +42,14 @@ class _Section(BaseModel):
 
 
 class DriverSection(_Section):
-    """Serial LiDAR transport (requirements SR-DRV-*)."""
+    """Serial LiDAR transport (requirements SR-DRV-*).
+
+    ``rplidar_mode`` "express" asks for express capsules, whose XOR checksum covers every
+    distance; "standard" nodes carry three check bits only (see README "Serial drivers").
+    ``incomplete_policy``: a revolution that lost beams to a rejected frame is emitted with
+    ``complete=False`` ("mark") or withheld ("drop"); its rejected beams are never emitted.
+    ``max_step_deg``: largest plausible angle step between two RPLIDAR nodes.
+    """
 
     protocol: Literal["rplidar", "scip"] = "rplidar"
     port_url: str = Field("", description="pyserial URL or device path; empty: no device")
@@ -51,6 +58,11 @@ class DriverSection(_Section):
     silent_timeout_s: float = Field(0.5, gt=0.0, le=30.0)
     reconnect_backoff_s: float = Field(0.2, ge=0.0, le=30.0)
     max_reconnects: int = Field(10, ge=0, le=10_000)
+    rplidar_mode: Literal["standard", "express"] = "express"
+    scip_command: Literal["MD", "MS"] = "MD"
+    incomplete_policy: Literal["mark", "drop"] = "mark"
+    max_beams_per_revolution: int = Field(8192, ge=16, le=65_536)
+    max_step_deg: float = Field(10.0, gt=0.0, le=90.0)
 
 
 class ScanSection(_Section):
