@@ -159,7 +159,8 @@ class ConvexPolygons:
                 f"ConvexPolygons: counts {counts.shape} and slack_m {slack.shape} must have "
                 f"shape ({n},)"
             )
-        if not np.all(np.isfinite(vertices)):
+        # One reduction: a sum is finite exactly when every (bounded) term is.
+        if not np.isfinite(vertices.sum()) and not np.all(np.isfinite(vertices)):
             bad = np.argwhere(~np.isfinite(vertices))[0]
             raise NonFiniteGeometryError(
                 f"ConvexPolygons: vertex {bad[1]} of polygon {bad[2]} is not finite "
@@ -172,8 +173,10 @@ class ConvexPolygons:
             )
         if not (np.all(np.isfinite(slack)) and np.all(slack >= 0.0)):
             raise GeometryError("ConvexPolygons: slack_m must be finite and >= 0")
-        padding = np.arange(k)[:, None] >= counts[None, :]
-        if np.any(padding & (vertices != vertices[:, :1, :]).any(axis=0)):
+        # Padding content cannot make a "clear" verdict unsound (a separating axis proves the
+        # hull of all K points apart); checking the last row catches misuse such as zeros.
+        padded = counts < k
+        if np.any(padded & (vertices[:, -1, :] != vertices[:, 0, :]).any(axis=0)):
             raise GeometryError("ConvexPolygons: padding must repeat each polygon's first vertex")
         object.__setattr__(self, "vertices_m", vertices)
         object.__setattr__(self, "counts", counts)

@@ -253,7 +253,7 @@ def _octagon(cx: float, cy: float, r: float) -> FloatArray:
 
 
 def aisle_workload(rng: np.random.Generator) -> AisleWorkload:
-    """Robot at the origin heading +x in a 3 m aisle lined by racks; 20 envelopes.
+    """Robot at the origin heading +x in a 2.5 m aisle lined by racks; 20 envelopes.
 
     Racks (1 m deep, 2.4-3 m long) line both sides from -6 m to 40 m, a reversing forklift's
     envelope and two people are in the aisle ahead; most pairs are far apart, a few racks
@@ -264,11 +264,11 @@ def aisle_workload(rng: np.random.Generator) -> AisleWorkload:
     for i, x in enumerate(xs):
         side = 1.0 if i % 2 == 0 else -1.0
         length = rng.uniform(2.4, 3.0)
-        y0 = side * (1.5 + rng.uniform(0.0, 0.15))
+        y0 = side * (1.25 + rng.uniform(0.0, 0.15))
         y1 = y0 + side * 1.0
         shapes.append(_box(x, min(y0, y1), x + length, max(y0, y1)))
     shapes.append(_box(9.0, -0.9, 11.5, 0.5))  # reversing forklift, inflated 0.4 m
-    shapes.append(_octagon(4.5, 0.9, 0.7))  # person, 0.3 m body + 0.4 m margin
+    shapes.append(_octagon(2.2, 0.9, 0.7))  # person, 0.3 m body + 0.4 m margin
     shapes.append(_octagon(16.0, -0.6, 0.7))
     shapes.append(_octagon(-3.0, 0.0, 0.7))  # person behind the robot
     shapes.append(_box(22.0, -0.4, 23.2, 0.4))  # pallet

@@ -35,7 +35,7 @@ SAT = ["safety/sat.py", "safety/geometry.py"]
 
 
 def _band(draw: PairDraw, tol: float, slack: float) -> float:
-    magnitude = max(np.abs(draw.a).max(), np.abs(draw.b).max())
+    magnitude = float(max(np.abs(draw.a).max(), np.abs(draw.b).max()))
     return tol + RHO * magnitude + slack
 
 
@@ -127,11 +127,11 @@ def test_depth_and_distance_match_exact_and_fcl(pair: PairDraw) -> None:
 
 
 @st.composite
-def _polygon_lists(draw: st.DrawFn) -> tuple[list[np.ndarray], list[np.ndarray]]:  # type: ignore[type-arg]
+def _polygon_lists(draw: st.DrawFn) -> tuple[list[np.ndarray], list[np.ndarray]]:
     scale = 10.0 ** draw(st.floats(-2.0, 2.0), label="log10 scale")
     box = st.tuples(st.floats(-3, 3), st.floats(-3, 3))
 
-    def one() -> st.SearchStrategy[np.ndarray]:  # type: ignore[type-arg]
+    def one() -> st.SearchStrategy[np.ndarray]:
         return st.builds(
             lambda pts, at: pts - pts.mean(axis=0) + np.asarray(at) * scale,
             convex_points(min_scale_exp=math.log10(scale), max_scale_exp=math.log10(scale)),
@@ -147,7 +147,7 @@ def _polygon_lists(draw: st.DrawFn) -> tuple[list[np.ndarray], list[np.ndarray]]
 @settings(max_examples=examples(100))
 @given(lists=_polygon_lists())
 def test_batched_equals_pairwise_and_symmetric(
-    lists: tuple[list[np.ndarray], list[np.ndarray]],  # type: ignore[type-arg]
+    lists: tuple[list[np.ndarray], list[np.ndarray]],
 ) -> None:
     try:
         a = convex_polygons(lists[0])

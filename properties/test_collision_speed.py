@@ -29,7 +29,7 @@ TARGET_S = 0.5e-3
 CODE = ["safety/sat.py"]
 
 
-def _coords(p: ConvexPolygons) -> np.ndarray:  # type: ignore[type-arg]
+def _coords(p: ConvexPolygons) -> np.ndarray:
     return np.ascontiguousarray(np.transpose(p.vertices_m, (2, 1, 0)))
 
 

@@ -138,7 +138,7 @@ def test_swept_path_check_matches_geos(
     target=st.sampled_from(["polygon", "pose"]),
 )
 def test_malformed_input_always_raises(
-    pts: np.ndarray,  # type: ignore[type-arg]
+    pts: np.ndarray,
     where: int,
     bad: float,
     axis: int,
@@ -148,18 +148,19 @@ def test_malformed_input_always_raises(
     footprint = convex_polygons([np.array([[-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2]])])
     traj = unicycle_trajectories([1.0, 0.5], [0.0, 0.3], horizon_s=1.0, step_s=0.1)
     checker = SweptPathChecker(safecase_config.geometry)
-    with pytest.raises(GeometryError):
-        if target == "polygon":
-            pts = pts.copy()
-            pts[where % len(pts), axis] = bad
+    good = convex_polygons([np.array([[2.0, 2.0], [3.0, 2.0], [3.0, 3.0], [2.0, 3.0]])])
+    if target == "polygon":
+        pts = pts.copy()
+        pts[where % len(pts), axis] = bad
+        with pytest.raises(GeometryError):
             checker.check(footprint, traj, convex_polygons([pts]))
-        else:
-            arrays = [traj.x_m.copy(), traj.y_m.copy(), traj.theta_rad.copy()]
-            arrays[axis + (where % 2)][where % traj.steps, where % traj.n] = bad
-            if not (abs(bad) > 1e6 or not math.isfinite(bad)) or (
-                axis + where % 2 == 2 and math.isfinite(bad)
-            ):
-                # A finite heading is a valid pose; only non-finite ones must raise.
-                arrays[axis + (where % 2)][0, 0] = math.nan
-            checker.check(footprint, Trajectories(*arrays, step_s=0.1), convex_polygons([pts]))
+    else:
+        arrays = [traj.x_m.copy(), traj.y_m.copy(), traj.theta_rad.copy()]
+        which = (axis + where) % 3
+        # A finite heading of any size is a valid pose; a huge finite one becomes NaN.
+        arrays[which][where % traj.steps, where % traj.n] = (
+            math.nan if which == 2 and math.isfinite(bad) else bad
+        )
+        with pytest.raises(GeometryError):
+            checker.check(footprint, Trajectories(arrays[0], arrays[1], arrays[2], 0.1), good)
     current().count("malformed inputs", f"{target}: raised GeometryError")

@@ -44,7 +44,6 @@ class SatStats:
     box_or_circle: int = 0
     centre_line: int = 0
     certificate: int = 0
-    best_edge: int = 0
     full_sat: int = 0
 
     def as_dict(self) -> dict[str, int]:
@@ -54,7 +53,6 @@ class SatStats:
             "box_or_circle": self.box_or_circle,
             "centre_line": self.centre_line,
             "certificate": self.certificate,
-            "best_edge": self.best_edge,
             "full_sat": self.full_sat,
         }
 
@@ -115,7 +113,8 @@ class SatChecker:
             | (bb.min_y_m[None, :] > ba.max_y_m[:, None] + tol)
             | (dx * dx + dy * dy > reach * reach)
         )
-        ia, ib = np.nonzero(~clear)
+        flat = np.flatnonzero(~clear)
+        ia, ib = np.divmod(flat, b.n)
         self.stats = SatStats(pairs=a.n * b.n, box_or_circle=a.n * b.n - ia.size)
         out = np.zeros((a.n, b.n), dtype=bool)
         if ia.size:
@@ -153,7 +152,6 @@ class SatChecker:
         cx = np.stack([ba.centre_x_m[ia], bb.centre_x_m[ib]])
         cy = np.stack([ba.centre_y_m[ia], bb.centre_y_m[ib]])
         ex, ey, c, length = _edges(ws, x, y)
-        side = _SIDES
         cols = np.arange(n)
 
         # Centre line: project both polygons on d = cB - cA.
@@ -172,46 +170,20 @@ class SatChecker:
         cert &= ~sep
         undecided = ~(sep | cert)
 
-        # Best edge of each side: the one the other polygon's centre lies farthest outside.
-        score = ws.get("score", (2, k, n))
-        tmp = ws.get("tmp", (2, k, n))
-        np.multiply(ey, cx[::-1, None, :], out=score)
-        np.multiply(ex, cy[::-1, None, :], out=tmp)
-        np.subtract(score, tmp, out=score)
-        np.subtract(score, c, out=score)
-        np.maximum(length, 1e-300, out=tmp)
-        np.divide(score, tmp, out=score)
-        pick = score.argmax(axis=1)
-        nx, ny = ey[side, pick, cols], -ex[side, pick, cols]
-        other = _project(ws, "q", nx[:, None, :], ny[:, None, :], x[::-1], y[::-1])
-        low = np.minimum.reduce(other, axis=1)
-        best = (low - c[side, pick, cols] > length[side, pick, cols] * thr).any(axis=0)
-        best &= undecided
-        sep |= best
-        undecided &= ~best
-
         rest = np.flatnonzero(undecided)
         if rest.size:
+            e = ws.get("e", (4, 2, k, n))
+            er = e[..., rest]
+            vr = v[::-1][..., rest]
             sep[rest] = _separated_full(
-                ws,
-                ex[:, :, rest],
-                ey[:, :, rest],
-                c[:, :, rest],
-                length[:, :, rest],
-                x[::-1, :, rest],
-                y[::-1, :, rest],
-                thr[rest],
+                ws, er[0], er[1], er[2], er[3], vr[:, 0], vr[:, 1], thr[rest]
             )
         stats = self.stats
         stats.centre_line = decided_line
         stats.certificate = int(cert.sum())
-        stats.best_edge = int(best.sum())
         stats.full_sat = int(rest.size)
         collide: BoolArray = ~sep
         return collide
-
-
-_SIDES = np.array([[0], [1]])
 
 
 def _check(polygons: ConvexPolygons, name: str) -> None:
@@ -230,10 +202,8 @@ def _edges(
     ``x``, ``y`` are (sides, K, n); edge i runs from vertex i to vertex i+1 (cyclically).
     """
     shape = x.shape
-    ex = ws.get("ex", shape)
-    ey = ws.get("ey", shape)
-    c = ws.get("c", shape)
-    length = ws.get("len", shape)
+    # One buffer for all four, so the few pairs left for the full test gather in one call.
+    ex, ey, c, length = ws.get("e", (4, *shape))
     tmp = ws.get("tmp", shape)
     np.subtract(x[:, 1:], x[:, :-1], out=ex[:, :-1])
     np.subtract(x[:, 0], x[:, -1], out=ex[:, -1])

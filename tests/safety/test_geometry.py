@@ -34,11 +34,11 @@ from safety.swept import (
 SAT = ["safety/sat.py", "safety/geometry.py"]
 
 
-def _box(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:  # type: ignore[type-arg]
+def _box(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
     return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
 
 
-def _pair(a: np.ndarray, b: np.ndarray) -> tuple[ConvexPolygons, ConvexPolygons]:  # type: ignore[type-arg]
+def _pair(a: np.ndarray, b: np.ndarray) -> tuple[ConvexPolygons, ConvexPolygons]:
     polys = convex_polygons([a, b])
     return polys.take([0]), polys.take([1])
 
@@ -109,9 +109,9 @@ def test_malformed_polygons_raise(points: list[list[float]], error: type, words:
 
 @pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/swept.py", "pipeline/types.py"])
 def test_malformed_poses_and_inputs_raise() -> None:
+    theta = np.zeros((5, 2))
+    theta[3, 1] = math.nan
     with pytest.raises(NonFiniteGeometryError, match=r"theta_rad\[3, 1\]"):
-        theta = np.zeros((5, 2))
-        theta[3, 1] = math.nan
         Trajectories(np.zeros((5, 2)), np.zeros((5, 2)), theta, 0.1)
     with pytest.raises(NonFiniteGeometryError, match="not finite"):
         ConvexPolygons(np.full((2, 3, 1), math.nan), np.array([3]), np.zeros(1))
@@ -187,8 +187,10 @@ def test_hull_only_block_is_reported_as_contact_now() -> None:
     traj = unicycle_trajectories([2.0], [1.0], horizon_s=math.pi, step_s=0.1)
     obstacles = convex_polygons([_box(-0.1, 1.9, 0.1, 2.1)])
     report = SweptPathChecker(default_config().geometry).check(footprint, traj, obstacles)
-    assert report.blocked[0, 0] and report.hull_only[0, 0]
-    assert report.contact_step[0, 0] == 0 and report.earliest_contact_s[0] == 0.0
+    assert report.blocked[0, 0]
+    assert report.hull_only[0, 0]
+    assert report.contact_step[0, 0] == 0
+    assert report.earliest_contact_s[0] == 0.0
 
 
 @pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
