@@ -146,14 +146,16 @@ class ConvexPolygons:
     slack_m: FloatArray
 
     def __post_init__(self) -> None:
-        vertices: FloatArray = np.asarray(frozen_array(self.vertices_m), dtype=np.float64)
-        counts: IntArray = np.asarray(frozen_array(self.counts, dtype=np.int64), dtype=np.int64)
-        slack: FloatArray = np.asarray(frozen_array(self.slack_m), dtype=np.float64)
+        vertices: FloatArray = np.array(self.vertices_m, dtype=np.float64, order="C", copy=True)
+        counts: IntArray = np.array(self.counts, dtype=np.int64, copy=True)
+        slack: FloatArray = np.array(self.slack_m, dtype=np.float64, copy=True)
+        for array in (vertices, counts, slack):
+            array.flags.writeable = False
         if vertices.ndim != 3 or vertices.shape[0] != 2 or vertices.shape[1] < 3:
             raise GeometryError(
                 f"ConvexPolygons: vertices_m must have shape (2, K >= 3, N), got {vertices.shape}"
             )
-        n = vertices.shape[2]
+        k, n = vertices.shape[1], vertices.shape[2]
         if counts.shape != (n,) or slack.shape != (n,):
             raise GeometryError(
                 f"ConvexPolygons: counts {counts.shape} and slack_m {slack.shape} must have "
@@ -166,17 +168,17 @@ class ConvexPolygons:
                 f"ConvexPolygons: vertex {bad[1]} of polygon {bad[2]} is not finite "
                 f"({float(vertices[tuple(bad)])!r}); expected finite coordinates in metres"
             )
-        k = vertices.shape[1]
-        if n and (counts.min() < 3 or counts.max() > k):
+        if n == 0:
+            pass
+        elif counts.min() < 3 or counts.max() > k:
             raise DegeneratePolygonError(
                 f"ConvexPolygons: counts must lie in [3, {k}], got {int(counts.min())}"
             )
-        if not (np.all(np.isfinite(slack)) and np.all(slack >= 0.0)):
+        elif not (slack.min() >= 0.0 and np.isfinite(slack.sum())):
             raise GeometryError("ConvexPolygons: slack_m must be finite and >= 0")
         # Padding content cannot make a "clear" verdict unsound (a separating axis proves the
         # hull of all K points apart); checking the last row catches misuse such as zeros.
-        padded = counts < k
-        if np.any(padded & (vertices[:, -1, :] != vertices[:, 0, :]).any(axis=0)):
+        elif ((vertices[:, -1, :] != vertices[:, 0, :]).any(axis=0) & (counts < k)).any():
             raise GeometryError("ConvexPolygons: padding must repeat each polygon's first vertex")
         object.__setattr__(self, "vertices_m", vertices)
         object.__setattr__(self, "counts", counts)

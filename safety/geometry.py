@@ -368,6 +368,7 @@ class PolygonBounds:
         "max_y_m",
         "min_x_m",
         "min_y_m",
+        "pack",
         "polygons",
         "slack",
     )
@@ -376,12 +377,18 @@ class PolygonBounds:
         v = polygons.vertices_m
         low = np.minimum.reduce(v, axis=1)
         high = np.maximum.reduce(v, axis=1)
+        # pack rows: centre x, centre y, magnitude, slack (one gather serves the SAT kernel)
+        pack = np.empty((4, polygons.n))
+        np.add(low, high, out=pack[:2])
+        pack[:2] *= 0.5
+        np.maximum(-low, high).max(axis=0, out=pack[2])
+        pack[3] = polygons.slack_m
+        self.pack = pack
         self.polygons = polygons
         self.min_x_m, self.min_y_m = low[0], low[1]
         self.max_x_m, self.max_y_m = high[0], high[1]
-        self.centre_x_m = (low[0] + high[0]) * 0.5
-        self.centre_y_m = (low[1] + high[1]) * 0.5
-        self.magnitude_m = np.maximum(np.abs(low), np.abs(high)).max(axis=0)
+        self.centre_x_m, self.centre_y_m = pack[0], pack[1]
+        self.magnitude_m = pack[2]
         self.slack = polygons.slack_m
         self._radius: FloatArray | None = None
 

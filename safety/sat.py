@@ -14,11 +14,15 @@ Each projection gap is computed in floating point within ``8u |n| M`` of its exa
 zero false negatives. A pair reported as colliding is either overlapping or touching, or
 separated by no more than ``thr`` along every edge normal (the tolerance band).
 
-The other steps only decide pairs sooner, never differently: the bounding circle and the
-distance pre-gate imply the centre-line test, and a point certified inside both polygons
-(with a margin above rounding) proves an overlap that no axis test can contradict. So the
-all-pairs and the matched-pairs entry points return identical verdicts, in either argument
-order.
+The other steps only decide pairs sooner, never differently: a bounding-circle reject
+(used by the planner's distance pre-gate) implies the centre-line test, and a point certified
+inside both polygons (with a margin above rounding) proves an overlap that no axis test can
+contradict. So the all-pairs and the matched-pairs entry points return identical verdicts, in
+either argument order.
+
+Hot-path layout: the candidate pairs' vertices are gathered into one (side, xy, K, pairs)
+buffer and every step is a whole-array numpy call over all pairs; scratch arrays come from a
+:class:`~safety.geometry.Workspace` so no large temporary is mapped afresh per call.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ class SatStats:
     """How the last call decided its pairs (for the evidence; cheap to keep)."""
 
     pairs: int = 0
-    box_or_circle: int = 0
+    box: int = 0
     centre_line: int = 0
     certificate: int = 0
     full_sat: int = 0
@@ -50,7 +54,7 @@ class SatStats:
         """Counts by deciding stage."""
         return {
             "pairs": self.pairs,
-            "box_or_circle": self.box_or_circle,
+            "box": self.box,
             "centre_line": self.centre_line,
             "certificate": self.certificate,
             "full_sat": self.full_sat,
@@ -89,7 +93,7 @@ class SatChecker:
             | (bb.min_y_m > ba.max_y_m + tol)
         )
         idx = np.flatnonzero(~clear)
-        self.stats = SatStats(pairs=a.n, box_or_circle=a.n - idx.size)
+        self.stats = SatStats(pairs=a.n, box=a.n - idx.size)
         out = np.zeros(a.n, dtype=bool)
         if idx.size:
             out[idx] = self._decide(a, b, ba, bb, idx, idx)
@@ -101,21 +105,16 @@ class SatChecker:
         _check(b, "b")
         ba, bb = PolygonBounds(a), PolygonBounds(b)
         tol = self.tolerance_m
-        magnitude = np.maximum(ba.magnitude_m[:, None], bb.magnitude_m[None, :])
-        thr = tol + RHO * magnitude + ba.slack[:, None] + bb.slack[None, :]
-        dx = bb.centre_x_m[None, :] - ba.centre_x_m[:, None]
-        dy = bb.centre_y_m[None, :] - ba.centre_y_m[:, None]
-        reach = ba.radius_m[:, None] + bb.radius_m[None, :] + 2.0 * thr
-        clear = (
-            (ba.min_x_m[:, None] > bb.max_x_m[None, :] + tol)
-            | (bb.min_x_m[None, :] > ba.max_x_m[:, None] + tol)
-            | (ba.min_y_m[:, None] > bb.max_y_m[None, :] + tol)
-            | (bb.min_y_m[None, :] > ba.max_y_m[:, None] + tol)
-            | (dx * dx + dy * dy > reach * reach)
+        # The boxes only: the bounding-circle test is implied by the kernel's centre-line
+        # test, which is cheaper than computing radii for the few pairs it would remove.
+        clear = (ba.min_x_m[:, None] > bb.max_x_m[None, :] + tol) | (
+            bb.min_x_m[None, :] > ba.max_x_m[:, None] + tol
         )
+        clear |= ba.min_y_m[:, None] > bb.max_y_m[None, :] + tol
+        clear |= bb.min_y_m[None, :] > ba.max_y_m[:, None] + tol
         flat = np.flatnonzero(~clear)
         ia, ib = np.divmod(flat, b.n)
-        self.stats = SatStats(pairs=a.n * b.n, box_or_circle=a.n * b.n - ia.size)
+        self.stats = SatStats(pairs=a.n * b.n, box=a.n * b.n - ia.size)
         out = np.zeros((a.n, b.n), dtype=bool)
         if ia.size:
             out[ia, ib] = self._decide(a, b, ba, bb, ia, ib)
@@ -131,56 +130,65 @@ class SatChecker:
         ia: IntArray,
         ib: IntArray,
     ) -> BoolArray:
-        """Collision verdicts of the pairs (a[ia], b[ib]) that no box or circle separates.
+        """Collision verdicts of the pairs (a[ia], b[ib]) that no box separates.
 
-        Both sides are stacked on a leading axis (0: A, 1: B) and padded to one K, so each
-        step below is one numpy call for both polygons of every pair.
+        Vertices are gathered into v[xy, side, K, pair] (side 0: A, 1: B, both padded to one
+        K), so each step below is one numpy call for both polygons of every pair; the call
+        count, not the arithmetic, is what costs for the few pairs of a typical cycle.
         """
         ws = self._ws
         n = ia.size
         k = max(a.k, b.k)
         v = ws.get("v", (2, 2, k, n))
-        np.take(a.vertices_m, ia, axis=2, out=v[0, :, : a.k])
-        np.take(b.vertices_m, ib, axis=2, out=v[1, :, : b.k])
+        np.take(a.vertices_m, ia, axis=2, out=v[:, 0, : a.k])
+        np.take(b.vertices_m, ib, axis=2, out=v[:, 1, : b.k])
         if a.k < k:
-            v[0, :, a.k :] = v[0, :, :1]
+            v[:, 0, a.k :] = v[:, 0, :1]
         if b.k < k:
-            v[1, :, b.k :] = v[1, :, :1]
-        x, y = v[:, 0], v[:, 1]
-        magnitude = np.maximum(ba.magnitude_m[ia], bb.magnitude_m[ib])
-        thr = self.tolerance_m + RHO * magnitude + ba.slack[ia] + bb.slack[ib]
-        cx = np.stack([ba.centre_x_m[ia], bb.centre_x_m[ib]])
-        cy = np.stack([ba.centre_y_m[ia], bb.centre_y_m[ib]])
-        ex, ey, c, length = _edges(ws, x, y)
-        cols = np.arange(n)
+            v[:, 1, b.k :] = v[:, 1, :1]
+        sa, sb = ba.pack[:, ia], bb.pack[:, ib]  # centre x, centre y, magnitude, slack
+        magnitude = np.maximum(sa[2], sb[2])
+        thr = sa[3] + sb[3] + (self.tolerance_m + RHO * magnitude)
+        d = sb[:2] - sa[:2]
+        e = _edges(ws, v)
+        ex, ey, c, length = e
 
         # Centre line: project both polygons on d = cB - cA.
-        dx, dy = cx[1] - cx[0], cy[1] - cy[0]
-        proj = _project(ws, "p", dx, dy, x, y)
+        proj = ws.get("p", (2, k, n))
+        tmp = ws.get("tmp", (2, k, n))
+        np.multiply(v[0], d[0], out=proj)
+        np.multiply(v[1], d[1], out=tmp)
+        np.add(proj, tmp, out=proj)
         top_a = proj[0].argmax(axis=0)
         low_b = proj[1].argmin(axis=0)
-        sep = proj[1, low_b, cols] - proj[0, top_a, cols] > np.sqrt(dx * dx + dy * dy) * thr
-        decided_line = int(sep.sum())
+        cols = np.arange(n)
+        gap = proj[1, low_b, cols] - proj[0, top_a, cols]
+        sep = gap > np.hypot(d[0], d[1]) * thr
+        by_line = int(np.count_nonzero(sep))
 
         # Certificates: B's vertex farthest back along d strictly inside A, or A's vertex
         # farthest along d strictly inside B (with a margin above rounding): an overlap.
-        px = np.stack([x[1, low_b, cols], x[0, top_a, cols]])
-        py = np.stack([y[1, low_b, cols], y[0, top_a, cols]])
-        cert = _inside(ws, px, py, ex, ey, c, length, CERT_KAPPA * magnitude).any(axis=0)
+        flat = np.stack([low_b * n + (k * n), top_a * n]) + cols
+        pts = v.reshape(2, -1)[:, flat]  # [xy, polygon tested (A, B), pair]
+        val = ws.get("val", (2, k, n))
+        np.multiply(ey, pts[0][:, None, :], out=val)
+        np.multiply(ex, pts[1][:, None, :], out=tmp)
+        np.subtract(val, tmp, out=val)
+        np.subtract(val, c, out=val)
+        np.multiply(length, CERT_KAPPA * magnitude, out=tmp)
+        np.add(val, tmp, out=val)
+        cert = np.logical_and.reduce(val < 0, axis=1).any(axis=0)
         cert &= ~sep
         undecided = ~(sep | cert)
 
         rest = np.flatnonzero(undecided)
         if rest.size:
-            e = ws.get("e", (4, 2, k, n))
             er = e[..., rest]
-            vr = v[::-1][..., rest]
-            sep[rest] = _separated_full(
-                ws, er[0], er[1], er[2], er[3], vr[:, 0], vr[:, 1], thr[rest]
-            )
+            vr = v[:, ::-1][..., rest]
+            sep[rest] = _separated_full(ws, er[0], er[1], er[2], er[3], vr[0], vr[1], thr[rest])
         stats = self.stats
-        stats.centre_line = decided_line
-        stats.certificate = int(cert.sum())
+        stats.centre_line = by_line
+        stats.certificate = int(np.count_nonzero(cert))
         stats.full_sat = int(rest.size)
         collide: BoolArray = ~sep
         return collide
@@ -194,65 +202,27 @@ def _check(polygons: ConvexPolygons, name: str) -> None:
         )
 
 
-def _edges(
-    ws: Workspace, x: FloatArray, y: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Edge vectors (ex, ey), offsets c = n . v with n = (ey, -ex) outward, lengths |e|.
+def _edges(ws: Workspace, v: FloatArray) -> FloatArray:
+    """Edge data e[0..3] = ex, ey, c, |e| of shape (side, K, n) for vertices v[xy, side, K, n].
 
-    ``x``, ``y`` are (sides, K, n); edge i runs from vertex i to vertex i+1 (cyclically).
+    Edge i runs from vertex i to i+1 (cyclically); its outward normal is n = (ey, -ex) and
+    c = n . v_i. Padding edges (zero length) get c = 1: they then never separate (their
+    projections are all 0, so the gap is -1) and never veto a certificate (n.p - c = -1).
     """
-    shape = x.shape
-    # One buffer for all four, so the few pairs left for the full test gather in one call.
-    ex, ey, c, length = ws.get("e", (4, *shape))
-    tmp = ws.get("tmp", shape)
-    np.subtract(x[:, 1:], x[:, :-1], out=ex[:, :-1])
-    np.subtract(x[:, 0], x[:, -1], out=ex[:, -1])
-    np.subtract(y[:, 1:], y[:, :-1], out=ey[:, :-1])
-    np.subtract(y[:, 0], y[:, -1], out=ey[:, -1])
-    np.multiply(ey, x, out=c)
-    np.multiply(ex, y, out=tmp)
-    np.subtract(c, tmp, out=c)
-    np.multiply(ex, ex, out=length)
-    np.multiply(ey, ey, out=tmp)
-    np.add(length, tmp, out=length)
-    np.sqrt(length, out=length)
-    return ex, ey, c, length
-
-
-def _project(
-    ws: Workspace, tag: str, dx: FloatArray, dy: FloatArray, x: FloatArray, y: FloatArray
-) -> FloatArray:
-    """d . v for every vertex; d broadcasts against the (sides, K, n) vertex arrays."""
-    out: FloatArray = ws.get(tag, x.shape)
-    tmp = ws.get(tag + "t", x.shape)
-    np.multiply(x, dx, out=out)
-    np.multiply(y, dy, out=tmp)
-    np.add(out, tmp, out=out)
-    return out
-
-
-def _inside(
-    ws: Workspace,
-    px: FloatArray,
-    py: FloatArray,
-    ex: FloatArray,
-    ey: FloatArray,
-    c: FloatArray,
-    length: FloatArray,
-    kappa: FloatArray,
-) -> BoolArray:
-    """Point (px[s], py[s]) certainly strictly inside polygon s: n.p - c < -kappa |n|."""
-    v = ws.get("in", ex.shape)
-    tmp = ws.get("int", ex.shape)
-    np.multiply(ey, px[:, None, :], out=v)
-    np.multiply(ex, py[:, None, :], out=tmp)
-    np.subtract(v, tmp, out=v)
-    np.subtract(v, c, out=v)
-    np.multiply(length, kappa, out=tmp)
-    np.add(v, tmp, out=v)
-    # Padding edges have n = 0, c = 0: v = 0 there, which must not veto the certificate.
-    inside: BoolArray = np.logical_and.reduce((v < 0) | (length == 0), axis=1)
-    return inside
+    _, sides, k, n = v.shape
+    e = ws.get("e", (4, sides, k, n))
+    sq = ws.get("esq", (2, sides, k, n))
+    np.subtract(v[:, :, 1:], v[:, :, :-1], out=e[:2, :, :-1])
+    np.subtract(v[:, :, 0], v[:, :, -1], out=e[:2, :, -1])
+    np.multiply(e[1], v[0], out=e[2])
+    np.multiply(e[0], v[1], out=sq[0])
+    np.subtract(e[2], sq[0], out=e[2])
+    np.multiply(e[:2], e[:2], out=sq)
+    np.add(sq[0], sq[1], out=e[3])
+    np.sqrt(e[3], out=e[3])
+    np.putmask(e[2], e[3] == 0, 1.0)
+    result: FloatArray = e
+    return result
 
 
 def _separated_full(
