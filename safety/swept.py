@@ -212,6 +212,22 @@ class SweptPathChecker:
         self.sat = SatChecker(config.contact_tolerance_m)
         self._ws = Workspace()
 
+    def footprint(self) -> ConvexPolygons:
+        """The configured rectangular footprint (``footprint_length_m`` x ``_width_m``)."""
+        return rectangle_footprint(self.config.footprint_length_m, self.config.footprint_width_m)
+
+    def candidates(self, max_speed_mps: float) -> Trajectories:
+        """The configured grid of ``n_speeds`` x ``n_yaw_rates`` constant arcs."""
+        c = self.config
+        return candidate_trajectories(
+            c.n_speeds,
+            c.n_yaw_rates,
+            max_speed_mps=max_speed_mps,
+            max_yaw_rate_radps=c.max_yaw_rate_radps,
+            horizon_s=c.horizon_s,
+            step_s=c.sample_dt_s,
+        )
+
     def check(
         self,
         footprint: ConvexPolygons,

@@ -61,9 +61,17 @@ def test_hard_case(case: HardCase, evidence: Recorder, safecase_config: Safecase
             "exact overlap": int(exact.overlap),
             "ours collision": int(ours),
             "shapely intersects": int(shapely.intersects(shapely.Polygon(va), shapely.Polygon(vb))),
-            "fcl collide": int(fcl_collide(va, vb)),
+            "fcl collide": int(fcl_collide(va, vb)),  # counted again below, by kind
         },
     )
+    fcl_says = bool(fcl_collide(va, vb))
+    if fcl_says != exact.overlap:
+        kind = "FCL missed an exact contact" if exact.overlap else "FCL collision, exact clear"
+        evidence.count("FCL disagreements (resolved by exact arithmetic)", kind)
+        evidence.count(
+            "FCL disagreements (resolved by exact arithmetic)",
+            "SAT agreed with exact" if ours == exact.overlap else "SAT in tolerance band",
+        )
     if not ours:
         # The safety-relevant claim, proved: no point lies in both polygons.
         evidence.smt(
@@ -201,3 +209,14 @@ def test_swept_hull_of_straight_motion_is_a_rectangle() -> None:
     vertices = hull.vertex_list(0)
     assert vertices[:, 0].min() == pytest.approx(-0.35)
     assert vertices[:, 0].max() == pytest.approx(1.85)
+
+
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
+def test_configured_candidates_and_footprint() -> None:
+    checker = SweptPathChecker(default_config().geometry)
+    traj = checker.candidates(max_speed_mps=1.0)
+    assert traj.n == 175
+    assert traj.steps == 16
+    assert traj.step_s == pytest.approx(0.1)
+    hull = swept_hulls(checker.footprint(), traj)
+    assert hull.n == 175
