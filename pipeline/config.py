@@ -206,13 +206,37 @@ class GovernorSection(_Section):
 
 
 class GeometrySection(_Section):
-    """Swept-path collision checking (SR-SAT-*)."""
+    """Swept-path collision checking (SR-SAT-*).
+
+    ``contact_tolerance_m``: pairs separated by at most this along every edge normal count as
+    colliding (the tolerance band). ``pregate_m``: envelopes farther than this from the robot
+    (and than any swept hull reaches) are not checked. Candidate trajectories: a grid of
+    ``n_speeds`` x ``n_yaw_rates`` = ``n_trajectories`` constant arcs over ``horizon_s``,
+    sampled every ``sample_dt_s``; the footprint is a ``footprint_length_m`` x
+    ``footprint_width_m`` rectangle.
+    """
 
     pregate_m: float = Field(20.0, gt=0.0, le=1000.0)
     sample_dt_s: float = Field(0.1, gt=0.0, le=1.0)
     n_trajectories: int = Field(175, ge=1, le=10_000)
     max_vertices: int = Field(32, ge=3, le=1024)
     contact_tolerance_m: float = Field(1e-9, ge=0.0, le=1e-3)
+    horizon_s: float = Field(1.5, gt=0.0, le=10.0)
+    n_speeds: int = Field(7, ge=1, le=100)
+    n_yaw_rates: int = Field(25, ge=1, le=1000)
+    max_yaw_rate_radps: float = Field(1.0, ge=0.0, le=10.0)
+    footprint_length_m: float = Field(0.7, gt=0.0, le=20.0)
+    footprint_width_m: float = Field(0.5, gt=0.0, le=20.0)
+    max_obstacles: int = Field(64, ge=1, le=10_000)
+
+    @model_validator(mode="after")
+    def _grid(self) -> Self:
+        if self.n_speeds * self.n_yaw_rates != self.n_trajectories:
+            raise ValueError(
+                f"geometry.n_speeds ({self.n_speeds}) x geometry.n_yaw_rates "
+                f"({self.n_yaw_rates}) must equal geometry.n_trajectories ({self.n_trajectories})"
+            )
+        return self
 
 
 class CostmapSection(_Section):

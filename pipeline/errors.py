@@ -30,3 +30,15 @@ class EvidenceError(SafecaseError):
 
 class RequirementsError(SafecaseError):
     """A malformed requirements catalogue or a reference to an unknown requirement ID."""
+
+
+class GeometryError(SafecaseError, ValueError):
+    """Geometry that cannot be checked safely (SR-SAT-4): never a silent "no collision"."""
+
+
+class NonFiniteGeometryError(GeometryError):
+    """A NaN or infinite coordinate or pose, or one beyond the supported range."""
+
+
+class DegeneratePolygonError(GeometryError):
+    """Fewer than 3 distinct points, or all points collinear: no area to check against."""
