@@ -39,18 +39,23 @@ def _ring(
     return out
 
 
+_SLOTS = 48
+
+
 @st.composite
 def convex_points(
     draw: st.DrawFn, *, min_scale_exp: float = -3.0, max_scale_exp: float = 3.0
 ) -> FloatArray:
     """Points of a convex-ish polygon (3-8 points on a jittered ring), any scale/position."""
     k = draw(st.integers(3, 8), label="k")
-    angles = draw(
-        st.lists(
-            st.floats(0.0, 2 * math.pi, exclude_max=True), min_size=k, max_size=k, unique=True
-        ),
-        label="angles",
+    # Distinct angular slots at least 2*pi/96 apart: unique floats alone allowed angles 1e-300
+    # apart, i.e. coincident or collinear rings that are not polygons at all (the hard-case
+    # corpus covers slivers and near-collinear vertices on purpose).
+    slots = draw(
+        st.lists(st.integers(0, _SLOTS - 1), min_size=k, max_size=k, unique=True), label="slots"
     )
+    jitter = draw(st.lists(st.floats(0.0, 0.5), min_size=k, max_size=k), label="angular jitter")
+    angles = [(s + j) * 2 * math.pi / _SLOTS for s, j in zip(slots, jitter, strict=True)]
     radii = draw(st.lists(st.floats(0.3, 1.0), min_size=k, max_size=k), label="radii")
     scale = 10.0 ** draw(st.floats(min_scale_exp, max_scale_exp), label="log10 scale")
     offset = 10.0 ** draw(st.floats(-3.0, 3.0), label="log10 offset")
