@@ -208,6 +208,11 @@ class Tracker:
             c.reid_size_floor_m,
         )
         rows, picked = assign(np.where(sized, cost, np.inf))
+        room = max(c.max_tracks - int(np.count_nonzero(st.live)), 0)
+        if rows.shape[0] > room:
+            # A re-identified track is live again: never more live tracks than max_tracks.
+            best = np.argsort(cost[rows, picked], kind="stable")[:room]
+            rows, picked = rows[np.sort(best)], picked[np.sort(best)]
         slots = dormant[rows]
         st.x[slots], st.p[slots] = xd[rows], pd[rows]
         return slots, cols[picked]
