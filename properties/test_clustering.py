@@ -61,7 +61,8 @@ def test_sanitation_drops_and_counts_every_bad_range(
     assert d.n_valid + d.n_dropped == scan.n_beams == d.n_beams
     assert pts.n == d.n_valid
     # Never passed on: every point is finite and in range, and is its own beam's range.
-    assert np.all(np.isfinite(pts.x_m)) and np.all(np.isfinite(pts.y_m))
+    assert np.all(np.isfinite(pts.x_m))
+    assert np.all(np.isfinite(pts.y_m))
     assert np.all((pts.range_m >= cfg.min_range_m) & (pts.range_m <= cfg.max_range_m))
     assert np.array_equal(pts.range_m, r[pts.beam_index])
     assert np.unique(pts.beam_index).shape[0] == pts.n
