@@ -7,6 +7,7 @@ it skip with :data:`MISSING_REASON` when it is absent.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from functools import partial
 from pathlib import Path
 
 from pipeline.sources.logs import (
@@ -32,18 +33,22 @@ RESTAMP_PERIOD_S = {"csail-corrected.log.gz": 0.1}
 Stream = tuple[str, Callable[[], Iterator[Scan]]]
 
 
+def _restamped_carmen(path: Path, period_s: float) -> Iterator[Scan]:
+    return restamped(read_carmen(path), period_s)
+
+
 def streams(root: Path = REAL_DATA) -> list[Stream]:
     """Every scan stream of the real logs: one per bag topic, one per text log."""
     out: list[Stream] = []
     for bag in sorted((root / "leg_tracker").glob("*.bag")):
         for topic in laserscan_topics(bag):
-            out.append((f"{bag.name}:{topic}", lambda b=bag, t=topic: read_ros1_bag(b, t)))
+            out.append((f"{bag.name}:{topic}", partial(read_ros1_bag, bag, topic)))
     for dat in sorted((root / "breezyslam").glob("*.dat")):
-        out.append((dat.name, lambda d=dat: read_breezyslam(d)))
+        out.append((dat.name, partial(read_breezyslam, dat)))
     for log in sorted((root / "carmen").glob("*.log.gz")):
         period = RESTAMP_PERIOD_S.get(log.name)
         if period is None:
-            out.append((log.name, lambda g=log: read_carmen(g)))
+            out.append((log.name, partial(read_carmen, log)))
         else:
-            out.append((log.name, lambda g=log, p=period: restamped(read_carmen(g), p)))
+            out.append((log.name, partial(_restamped_carmen, log, period)))
     return out

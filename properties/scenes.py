@@ -53,7 +53,8 @@ def _ray_segments(c: FloatArray, s: FloatArray, segs: FloatArray) -> FloatArray:
         t = (ax * ey - ay * ex) / den
         u = (ax * ss - ay * cc) / den
     hit = (np.abs(den) > 1e-12) & (t > 0.0) & (u >= 0.0) & (u <= 1.0)
-    return np.where(hit, t, np.inf).min(axis=1)
+    nearest: FloatArray = np.where(hit, t, np.inf).min(axis=1)
+    return nearest
 
 
 def _box_segments(ob: Obstacle) -> FloatArray:

@@ -84,7 +84,7 @@ def test_kalman_speed_against_filterpy(benchmark: Any, safecase_config: Safecase
     dts = np.full(N_TRACKS, DT_S)
     filters = filterpy_filters(x, p, t.process_accel_std_mps2, t.measurement_std_m)
 
-    def ours() -> object:
+    def ours() -> tuple[np.ndarray, np.ndarray]:
         xp, pp = kalman.predict(x, p, dts, t.process_accel_std_mps2)
         return kalman.update(xp, pp, z, t.measurement_std_m)
 

@@ -24,6 +24,7 @@ import gzip
 import math
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -79,7 +80,7 @@ def read_ros1_bag(path: Path | str, topic: str | None = None) -> Iterator[Scan]:
         if not chosen:
             raise LogFormatError(f"{file}: no LaserScan topic {topic!r}; found {topics}")
         for index, (connection, _, raw) in enumerate(reader.messages(connections=chosen)):
-            msg = typestore.deserialize_ros1(raw, connection.msgtype)
+            msg: Any = typestore.deserialize_ros1(raw, connection.msgtype)
             ranges = np.asarray(msg.ranges, dtype=np.float64)
             n = ranges.shape[0]
             if not (math.isfinite(msg.angle_min) and math.isfinite(msg.angle_increment)):

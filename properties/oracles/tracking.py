@@ -105,7 +105,7 @@ def filterpy_filters(
         kf.P = p.copy()
         kf.H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
         kf.R = np.eye(2) * measurement_std_m**2
-        kf.accel_var = accel_std_mps2**2  # type: ignore[attr-defined]
+        kf.accel_var = accel_std_mps2**2
         filters.append(kf)
     return filters
 

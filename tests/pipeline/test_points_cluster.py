@@ -16,7 +16,7 @@ from pipeline.types import Scan
 
 @pytest.mark.requirement("SR-TRK-1", code=["pipeline/points.py"])
 def test_each_kind_of_bad_range_is_counted_under_its_reason() -> None:
-    ranges = [1.0, math.nan, math.inf, -math.inf, 0.01, -2.0, 31.0, 2.0]
+    ranges = np.array([1.0, math.nan, math.inf, -math.inf, 0.01, -2.0, 31.0, 2.0])
     scan = Scan(stamp_s=1.0, angles_rad=np.linspace(0.0, 1.0, 8), ranges_m=ranges)
     pts = scan_to_points(scan, default_config().scan)
     d = pts.drops
@@ -37,7 +37,9 @@ def test_mount_pose_moves_points_into_the_robot_frame() -> None:
     config = overridden(
         default_config(), {"scan": {"mount_x_m": 0.5, "mount_yaw_rad": math.pi / 2}}
     ).scan
-    pts = scan_to_points(Scan(stamp_s=0.0, angles_rad=[0.0], ranges_m=[2.0]), config)
+    pts = scan_to_points(
+        Scan(stamp_s=0.0, angles_rad=np.zeros(1), ranges_m=np.full(1, 2.0)), config
+    )
     assert (pts.x_m[0], pts.y_m[0]) == pytest.approx((0.5, 2.0))
 
 

@@ -29,7 +29,7 @@ def test_assignment_never_returns_an_infeasible_pair_and_prefers_more_matches() 
 
 
 def test_gates_reject_far_and_improbable_pairs() -> None:
-    s_inv = np.linalg.inv(np.eye(2)[None] * 0.01)
+    s_inv = np.linalg.inv(np.eye(2)[None] * 0.01).astype(np.float64)
     cost = gated_costs(
         np.zeros((1, 2)), s_inv, np.array([[0.1, 0.0], [0.5, 0.0], [5.0, 0]]), 2.0, 9.21
     )
