@@ -130,8 +130,8 @@ def stonesoup_gospa(truth_xy_m: FloatArray, hyp_xy_m: FloatArray, c_m: float, p:
     hyps = [State(np.asarray(xy, dtype=float).reshape(2, 1), timestamp=stamp) for xy in hyp_xy_m]
     if not truth and not hyps:
         return 0.0
-    value, _ = metric.compute_gospa_metric(hyps, truth)
-    return float(value["distance"])
+    result, _ = metric.compute_gospa_metric(hyps, truth)
+    return float(result.value["distance"])
 
 
 def geos_hull_area(xy_m: FloatArray) -> float:
