@@ -71,6 +71,10 @@ class ScanSection(_Section):
     min_range_m: float = Field(0.05, ge=0.0, le=10.0)
     max_range_m: float = Field(30.0, gt=0.0, le=200.0)
     max_beams: int = Field(2048, ge=16, le=16384)
+    # Pose of the scanner in the robot frame: points are reported in the robot frame.
+    mount_x_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_y_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_yaw_rad: float = Field(0.0, ge=-6.2832, le=6.2832)
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
@@ -90,6 +94,9 @@ class ClusterSection(_Section):
     min_points: int = Field(4, ge=1, le=10_000)
     max_points: int = Field(200, ge=1, le=10_000)
     max_clusters: int = Field(64, ge=1, le=1024)
+    # Floor of the box area used for point density, so a line-shaped cluster (zero-width box)
+    # gets a finite density.
+    density_min_area_m2: float = Field(0.01, gt=0.0, le=100.0)
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
@@ -122,6 +129,20 @@ class TrackSection(_Section):
     dormant_prediction_cap_s: float = Field(3.0, ge=0.0, le=60.0)
     max_tracks: int = Field(64, ge=1, le=10_000)
     reid_enabled: bool = True
+    max_detections: int = Field(64, ge=1, le=10_000)
+    init_velocity_std_mps: float = Field(2.0, gt=0.0, le=100.0)
+    # Size comparison for re-identification: |a - b| <= tolerance * max(a, b, floor), so
+    # leg-sized clusters are not refused over a few centimetres of noise.
+    reid_size_floor_m: float = Field(0.1, ge=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.lost_after_misses > self.dormant_after_misses:
+            raise ValueError(
+                f"track.lost_after_misses ({self.lost_after_misses}) must not exceed "
+                f"track.dormant_after_misses ({self.dormant_after_misses})"
+            )
+        return self
 
 
 class ClassifySection(_Section):

@@ -1,0 +1,263 @@
+"""The multi-object tracker: one call per scan, clusters in, tracks out (SR-TRK-3..5, SR-TIM-3).
+
+A cycle: check the clock, cap the detections (nearest kept), predict every live track with the
+batched Kalman filter, gate and assign by cascade (confirmed and lost tracks, then tentative),
+re-identify dormant tracks from the leftovers, update the matched tracks in one batch, apply
+the lifecycle transitions, start tentative tracks on what is left (while live slots remain),
+and report a :class:`pipeline.types.Tracks` snapshot with the per-track features (centroid
+history, deceleration estimate, size variance). Every array is bounded by ``track.max_tracks``,
+``track.max_dormant`` and ``track.max_detections``, so the cycle's work is bounded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.config import TrackSection
+from pipeline.errors import SafecaseError
+from pipeline.track import kalman
+from pipeline.track.associate import assign, cascade, gated_costs
+from pipeline.track.lifecycle import FREE, TrackStore, size_compatible
+from pipeline.types import Clusters, FloatArray, IntArray, Tracks, TrackStatus, frozen_array
+
+__all__ = ["CycleCounts", "Detections", "Tracker", "TrackerError"]
+
+
+class TrackerError(SafecaseError, ValueError):
+    """Input the tracker refuses: a clock that ran backwards or non-finite detections."""
+
+
+@dataclass(frozen=True, slots=True)
+class Detections:
+    """What the tracker consumes from one scan: centroids and box sizes (struct of arrays)."""
+
+    stamp_s: float
+    x_m: FloatArray
+    y_m: FloatArray
+    width_m: FloatArray
+    length_m: FloatArray
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "width_m", "length_m"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        n = self.x_m.shape
+        if self.y_m.shape != n or self.width_m.shape != n or self.length_m.shape != n:
+            raise TrackerError("Detections: x_m, y_m, width_m and length_m must match in shape")
+
+    @classmethod
+    def from_clusters(cls, clusters: Clusters) -> Detections:
+        """Centroids and oriented-box sizes of the kept clusters."""
+        return cls(
+            clusters.stamp_s,
+            clusters.centroid_x_m,
+            clusters.centroid_y_m,
+            clusters.width_m,
+            clusters.length_m,
+        )
+
+    @property
+    def n(self) -> int:
+        """Number of detections."""
+        return int(self.x_m.shape[0])
+
+
+@dataclass(frozen=True, slots=True)
+class CycleCounts:
+    """What one tracker cycle did (read by the evidence and the runtime monitors)."""
+
+    n_detections: int
+    n_detections_dropped: int
+    n_matched_confirmed: int
+    n_matched_tentative: int
+    n_reidentified: int
+    n_born: int
+    n_births_refused: int
+    n_tentative_dropped: int
+    n_dormant_deleted: int
+    n_lost_deleted: int
+    n_live: int
+    n_dormant: int
+
+
+class Tracker:
+    """Stateful tracker over one scan stream (configured by the ``track`` section)."""
+
+    def __init__(self, config: TrackSection) -> None:
+        self.config = config
+        self.store = TrackStore(config)
+        self.last_stamp_s: float | None = None
+        self.last_counts: CycleCounts | None = None
+
+    def step(self, detections: Detections) -> Tracks:
+        """Run one cycle on ``detections`` (stamped in seconds) and return the snapshot."""
+        c, st = self.config, self.store
+        stamp = float(detections.stamp_s)
+        if not np.isfinite(stamp):
+            raise TrackerError(f"Tracker.step: stamp_s must be finite, got {stamp!r}")
+        if self.last_stamp_s is not None and stamp < self.last_stamp_s:
+            raise TrackerError(
+                f"Tracker.step: stamp_s {stamp!r} is before the previous cycle's "
+                f"{self.last_stamp_s!r}; expected a clock that does not run backwards"
+            )
+        dt = 0.0 if self.last_stamp_s is None else stamp - self.last_stamp_s
+        det_xy = np.stack([detections.x_m, detections.y_m], axis=1)
+        det_wl = np.stack([detections.width_m, detections.length_m], axis=1)
+        if not (np.all(np.isfinite(det_xy)) and np.all(np.isfinite(det_wl))):
+            raise TrackerError("Tracker.step: detections must be finite (x, y, width, length)")
+        det_index = np.arange(detections.n)
+        n_dropped = 0
+        if detections.n > c.max_detections:
+            nearest = np.argsort(np.hypot(det_xy[:, 0], det_xy[:, 1]), kind="stable")
+            det_index = np.sort(nearest[: c.max_detections])
+            n_dropped = detections.n - c.max_detections
+            det_xy, det_wl = det_xy[det_index], det_wl[det_index]
+
+        live = np.flatnonzero(st.live)
+        if live.shape[0] and dt > 0.0:
+            st.x[live], st.p[live] = kalman.predict(
+                st.x[live], st.p[live], np.full(live.shape[0], dt), c.process_accel_std_mps2
+            )
+        _, s_inv = kalman.innovation(st.p[live], c.measurement_std_m)
+        cost = gated_costs(
+            st.x[live, :2], s_inv, det_xy, c.gate_euclidean_m, c.gate_mahalanobis_chi2
+        )
+        status = st.status[live]
+        confirmed = (status == TrackStatus.CONFIRMED) | (status == TrackStatus.LOST)
+        match, free = cascade(cost, [confirmed, status == TrackStatus.TENTATIVE])
+        hit_slots = live[match >= 0]
+        hit_dets = match[match >= 0]
+        n_confirmed_hits = int(np.count_nonzero(confirmed & (match >= 0)))
+
+        reid_slots, reid_dets = self._reidentify(stamp, det_xy, det_wl, free)
+        free[reid_dets] = False
+        slots = np.concatenate([hit_slots, reid_slots])
+        dets = np.concatenate([hit_dets, reid_dets])
+        st.detection_index[st.status != FREE] = -1
+        if slots.shape[0]:
+            x_new, p_new = kalman.update(
+                st.x[slots], st.p[slots], det_xy[dets], c.measurement_std_m
+            )
+            st.x[slots] = st.x_post[slots] = x_new
+            st.p[slots] = st.p_post[slots] = p_new
+            st.last_update_s[slots] = stamp
+            st.detection_index[slots] = det_index[dets]
+            st.record(slots, stamp, det_wl[dets])
+        hit = np.zeros(st.capacity, dtype=bool)
+        hit[slots] = True
+        reidentified = np.zeros(st.capacity, dtype=bool)
+        reidentified[reid_slots] = True
+        st.reid_count[reid_slots] += 1
+        n_tentative_dropped, n_dormant_deleted, n_lost_deleted = st.advance(hit, reidentified)
+
+        leftover = np.flatnonzero(free)
+        room = max(c.max_tracks - int(np.count_nonzero(st.live)), 0)
+        if leftover.shape[0] > room:
+            by_range = np.argsort(np.hypot(det_xy[leftover, 0], det_xy[leftover, 1]), kind="stable")
+            leftover = np.sort(leftover[by_range[:room]])
+        n_refused = int(np.count_nonzero(free)) - leftover.shape[0]
+        if leftover.shape[0]:
+            x0, p0 = kalman.initiate(det_xy[leftover], c.measurement_std_m, c.init_velocity_std_mps)
+            st.create(x0, p0, stamp, det_wl[leftover], det_index[leftover])
+
+        self.last_stamp_s = stamp
+        self.last_counts = CycleCounts(
+            n_detections=detections.n,
+            n_detections_dropped=n_dropped,
+            n_matched_confirmed=n_confirmed_hits,
+            n_matched_tentative=int(hit_slots.shape[0]) - n_confirmed_hits,
+            n_reidentified=int(reid_slots.shape[0]),
+            n_born=int(leftover.shape[0]),
+            n_births_refused=n_refused,
+            n_tentative_dropped=n_tentative_dropped,
+            n_dormant_deleted=n_dormant_deleted,
+            n_lost_deleted=n_lost_deleted,
+            n_live=int(np.count_nonzero(st.live)),
+            n_dormant=int(np.count_nonzero(st.status == TrackStatus.DORMANT)),
+        )
+        return self.snapshot()
+
+    def _reidentify(
+        self, stamp: float, det_xy: FloatArray, det_wl: FloatArray, free: np.ndarray
+    ) -> tuple[IntArray, IntArray]:
+        """Match dormant tracks to leftover detections; primes matched slots for the update."""
+        c, st = self.config, self.store
+        empty = np.empty(0, dtype=np.int64)
+        dormant = np.flatnonzero(st.status == TrackStatus.DORMANT)
+        cols = np.flatnonzero(free)
+        if not c.reid_enabled or dormant.shape[0] == 0 or cols.shape[0] == 0:
+            return empty, empty
+        horizon = np.minimum(stamp - st.last_update_s[dormant], c.dormant_prediction_cap_s)
+        xd, pd = kalman.predict(
+            st.x_post[dormant], st.p_post[dormant], horizon, c.process_accel_std_mps2
+        )
+        _, s_inv = kalman.innovation(pd, c.measurement_std_m)
+        factor = c.dormant_gate_factor
+        cost = gated_costs(
+            xd[:, :2],
+            s_inv,
+            det_xy[cols],
+            c.gate_euclidean_m * factor,
+            c.gate_mahalanobis_chi2 * factor * factor,
+        )
+        sized = size_compatible(
+            st.mean_size(dormant),
+            det_wl[cols],
+            c.dormant_size_tolerance_frac,
+            c.reid_size_floor_m,
+        )
+        rows, picked = assign(np.where(sized, cost, np.inf))
+        room = max(c.max_tracks - int(np.count_nonzero(st.live)), 0)
+        if rows.shape[0] > room:
+            # A re-identified track is live again: never more live tracks than max_tracks.
+            best = np.argsort(cost[rows, picked], kind="stable")[:room]
+            rows, picked = rows[np.sort(best)], picked[np.sort(best)]
+        slots = dormant[rows]
+        st.x[slots], st.p[slots] = xd[rows], pd[rows]
+        return slots, cols[picked]
+
+    def snapshot(self) -> Tracks:
+        """The current tracks (live and dormant) ordered by ID, with their features."""
+        c, st = self.config, self.store
+        slots = np.flatnonzero(st.status != FREE)
+        slots = slots[np.argsort(st.track_id[slots], kind="stable")]
+        last_t = st.hist_t[slots, -1:]
+        window = st.hist_t[slots] >= last_t - c.decel_window_s - 1e-9
+        t = np.where(window, st.hist_t[slots] - last_t, 0.0)
+        v = np.where(window, st.hist_speed[slots], 0.0)
+        k = window.sum(axis=1)
+        kk = np.maximum(k, 1)
+        t_mean = t.sum(axis=1) / kk
+        v_mean = v.sum(axis=1) / kk
+        dt_c = np.where(window, t - t_mean[:, None], 0.0)
+        sxx = (dt_c * dt_c).sum(axis=1)
+        sxy = (dt_c * np.where(window, v - v_mean[:, None], 0.0)).sum(axis=1)
+        decel = np.where((k >= 2) & (sxx > 0.0), -sxy / np.where(sxx > 0.0, sxx, 1.0), 0.0)
+        sizes = st.size_wl[slots]
+        have = ~np.isnan(sizes)
+        n_size = np.maximum(have[:, :, 0].sum(axis=1), 1)[:, None]
+        mean = np.where(have, sizes, 0.0).sum(axis=1) / n_size
+        dev = np.where(have, sizes - mean[:, None, :], 0.0)
+        size_var = (dev * dev).sum(axis=1).sum(axis=1) / n_size[:, 0]
+        latest_wl = mean if slots.shape[0] == 0 else sizes[:, -1, :]
+        dormant = st.status[slots] == TrackStatus.DORMANT
+        return Tracks(
+            stamp_s=self.last_stamp_s if self.last_stamp_s is not None else 0.0,
+            track_id=st.track_id[slots],
+            status=st.status[slots],
+            state=np.where(dormant[:, None], st.x_post[slots], st.x[slots]),
+            covariance=np.where(dormant[:, None, None], st.p_post[slots], st.p[slots]),
+            detection_index=st.detection_index[slots],
+            age_frames=st.age_frames[slots],
+            hits=st.hits[slots],
+            misses=st.misses[slots],
+            last_update_s=st.last_update_s[slots],
+            width_m=latest_wl[:, 0],
+            length_m=latest_wl[:, 1],
+            size_variance_m2=size_var,
+            decel_mps2=decel,
+            history_xy_m=st.hist_xy[slots],
+            history_len=st.hist_len[slots],
+            reid_count=st.reid_count[slots],
+        )

@@ -1,0 +1,130 @@
+"""Examples for the Kalman filter, association, lifecycle and metrics (SR-TRK-3..5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.config import default_config, overridden
+from pipeline.track import kalman
+from pipeline.track.associate import assign, cascade, gated_costs
+from pipeline.track.metrics import Frame, evaluate, gospa
+from pipeline.track.tracker import Detections, Tracker, TrackerError
+from pipeline.types import TrackStatus
+
+
+def _det(t: float, xy: list[tuple[float, float]], size: float = 0.5) -> Detections:
+    a = np.array(xy, dtype=float).reshape(-1, 2)
+    return Detections(t, a[:, 0], a[:, 1], np.full(len(a), size), np.full(len(a), 2 * size))
+
+
+def test_assignment_never_returns_an_infeasible_pair_and_prefers_more_matches() -> None:
+    inf = np.inf
+    cost = np.array([[1.0, 2.0], [inf, 10.0]])
+    rows, cols = assign(cost)
+    assert sorted(zip(rows.tolist(), cols.tolist(), strict=True)) == [(0, 0), (1, 1)]
+    match, free = cascade(np.array([[inf, inf], [0.5, inf]]), [np.array([True, True])])
+    assert match.tolist() == [-1, 0]
+    assert free.tolist() == [False, True]
+
+
+def test_gates_reject_far_and_improbable_pairs() -> None:
+    s_inv = np.linalg.inv(np.eye(2)[None] * 0.01).astype(np.float64)
+    cost = gated_costs(
+        np.zeros((1, 2)), s_inv, np.array([[0.1, 0.0], [0.5, 0.0], [5.0, 0]]), 2.0, 9.21
+    )
+    assert np.isfinite(cost[0, 0])
+    assert np.isinf(cost[0, 1])  # within 2 m but d^2 = 25 > 9.21
+    assert np.isinf(cost[0, 2])  # beyond the Euclidean pre-gate
+
+
+def test_constant_velocity_is_learned() -> None:
+    x, p = kalman.initiate(np.zeros((1, 2)), 0.05, 2.0)
+    for k in range(1, 30):
+        x, p = kalman.predict(x, p, np.array([0.1]), 1.0)
+        x, p = kalman.update(x, p, np.array([[0.1 * k, -0.05 * k]]), 0.05)
+    assert x[0, 2:] == pytest.approx([1.0, -0.5], abs=1e-3)
+
+
+@pytest.mark.requirement(
+    "SR-TRK-4", code=["pipeline/track/lifecycle.py", "pipeline/track/tracker.py"]
+)
+def test_lifecycle_through_dormancy_and_reidentification() -> None:
+    tr = Tracker(default_config().track)
+    t = 0.0
+    for _ in range(4):
+        tracks = tr.step(_det(t, [(2.0 + t, 1.0)]))
+        t += 0.1
+    assert tracks.status.tolist() == [TrackStatus.CONFIRMED]
+    tid = int(tracks.track_id[0])
+    statuses = []
+    for _ in range(8):  # hidden: CONFIRMED -> LOST -> DORMANT
+        statuses.append(int(tr.step(_det(t, [])).status[0]))
+        t += 0.1
+    assert TrackStatus.LOST in statuses
+    assert statuses[-1] == TrackStatus.DORMANT
+    tracks = tr.step(_det(t, [(2.0 + t, 1.0)]))
+    assert tracks.track_id.tolist() == [tid]
+    assert tracks.status.tolist() == [TrackStatus.CONFIRMED]
+    assert tracks.reid_count.tolist() == [1]
+    assert tracks.history_len[0] == 5
+    assert tr.last_counts is not None
+    assert tr.last_counts.n_reidentified == 1
+
+
+def test_without_reidentification_the_object_gets_a_new_id() -> None:
+    tr = Tracker(overridden(default_config(), {"track": {"reid_enabled": False}}).track)
+    t = 0.0
+    for _ in range(4):
+        first = tr.step(_det(t, [(2.0, 1.0)]))
+        t += 0.1
+    for _ in range(8):
+        tr.step(_det(t, []))
+        t += 0.1
+    again = tr.step(_det(t, [(2.0, 1.0)]))
+    assert again.track_id.tolist() == [int(first.track_id[0]) + 1]
+
+
+def test_a_different_size_is_not_reidentified() -> None:
+    tr = Tracker(default_config().track)
+    t = 0.0
+    for _ in range(4):
+        tr.step(_det(t, [(2.0, 1.0)], size=0.3))
+        t += 0.1
+    for _ in range(8):
+        tr.step(_det(t, []))
+        t += 0.1
+    tracks = tr.step(_det(t, [(2.0, 1.0)], size=1.0))
+    assert tracks.reid_count.max() == 0
+
+
+def test_clock_running_backwards_is_refused() -> None:
+    tr = Tracker(default_config().track)
+    tr.step(_det(1.0, [(1.0, 1.0)]))
+    with pytest.raises(TrackerError, match="before the previous cycle"):
+        tr.step(_det(0.5, [(1.0, 1.0)]))
+
+
+def test_deceleration_and_size_variance_features() -> None:
+    tr = Tracker(default_config().track)
+    x, v = 0.0, 2.0
+    for k in range(15):
+        tracks = tr.step(_det(0.1 * k, [(x, 0.0)]))
+        x += v * 0.1
+        v = max(v - 0.1, 0.0)  # 1 m/s^2 braking
+    assert tracks.decel_mps2[0] == pytest.approx(1.0, abs=0.35)
+    assert tracks.size_variance_m2[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_metrics_count_an_id_switch_and_a_fragmentation() -> None:
+    truth = [Frame(np.array([0]), np.array([[0.0, 0.0]])) for _ in range(4)]
+    hyps = [
+        Frame(np.array([7]), np.array([[0.1, 0.0]])),
+        Frame(np.array([], dtype=np.int64), np.zeros((0, 2))),
+        Frame(np.array([9]), np.array([[0.0, 0.1]])),
+        Frame(np.array([9]), np.array([[0.0, 0.0]])),
+    ]
+    q = evaluate(truth, hyps)
+    assert (q.id_switches, q.fragmentations, q.n_misses, q.n_false_positives) == (1, 1, 1, 0)
+    assert q.mota == pytest.approx(0.5)
+    assert gospa(np.zeros((1, 2)), np.zeros((0, 2)), 2.0, 2.0)[0] == pytest.approx(2.0**0.5)
