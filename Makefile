@@ -41,7 +41,7 @@ typecheck: $(STAMP)
 	$(BIN)/mypy
 
 pytest: $(STAMP)
-	rm -rf $(TEST_OUT)
+	rm -rf $(TEST_OUT) && mkdir -p $(TEST_OUT)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q -ra --hypothesis-profile=ci \
 	  --safecase-out=$(TEST_OUT) --safecase-enforce \
 	  --benchmark-min-rounds=5 --benchmark-max-time=0.2 --benchmark-warmup=off \

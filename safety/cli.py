@@ -33,6 +33,7 @@ evidence_app = typer.Typer(help="Inspect and verify evidence bundles.", no_args_
 config_app = typer.Typer(help="Show and check configurations.", no_args_is_help=True)
 app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
+app.add_typer(__import__("pipeline.sim.cli", fromlist=["app"]).app, name="sim")
 
 err = Console(stderr=True, soft_wrap=True)
 out = Console(soft_wrap=True)
