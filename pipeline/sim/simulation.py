@@ -13,6 +13,7 @@ drive the simulation; :meth:`Simulation.run` does it with a policy callable.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -212,6 +213,14 @@ class Simulation:
         self._frames.append(frame)
         self._k += 1
         return frame
+
+    def scans(self, policy: SpeedPolicy | None = None) -> Iterator[Scan]:
+        """The run as a scan source: each scan as its revolution completes; ``policy`` (if
+        given) is asked for a speed after each, otherwise the robot keeps its command."""
+        while (frame := self.next_frame()) is not None:
+            yield frame.scan
+            if policy is not None:
+                self.command(policy(frame.observation))
 
     def run(self, policy: SpeedPolicy) -> SimResult:
         """Run to the end, asking ``policy`` for a speed after every scan."""

@@ -99,6 +99,15 @@ def test_mixed_pixels_appear_at_depth_jumps_only() -> None:
     assert np.all(near_jump[beams.mixed])
 
 
+def test_a_simulation_is_a_scan_source() -> None:
+    cfg = overridden(default_config(), {"sim": {"beams": 90}})
+    sim = make_simulation(cfg, "crossing_pedestrian", 2, duration_s=1.0)
+    scans = list(sim.scans(ConstantSpeed(0.5)))
+    assert [s.seq for s in scans] == list(range(10))
+    assert all(s.source == "sim:crossing_pedestrian:2" and s.n_beams == 90 for s in scans)
+    assert sim.ego.log()["command_mps"][-1] == 0.5
+
+
 def test_time_skew_spreads_the_beams_over_the_revolution() -> None:
     cfg = overridden(default_config(), {"sim": {"time_skew": True, "beams": 360}})
     spec = lidar_spec_from_config(cfg)
