@@ -21,6 +21,7 @@ from evidence.catalogue import load_catalogue
 from evidence.manifest import load_public_key, verify_bundle
 from pipeline.config import SafecaseConfig, config_hash, load_config, to_toml
 from pipeline.errors import ConfigError, SafecaseError
+from pipeline.sim.cli import app as sim_app
 
 app = typer.Typer(
     name="safecase",
@@ -33,6 +34,7 @@ evidence_app = typer.Typer(help="Inspect and verify evidence bundles.", no_args_
 config_app = typer.Typer(help="Show and check configurations.", no_args_is_help=True)
 app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
+app.add_typer(sim_app, name="sim")
 
 err = Console(stderr=True, soft_wrap=True)
 out = Console(soft_wrap=True)
