@@ -235,8 +235,20 @@ def test_every_injected_fault_is_detected_or_harmless(
     record = current()
     record.count(f"faults {link}", f"{kind.value} injected", 1)
     record.count(f"faults {link}", f"{kind.value} {verdict}", 1)
-    if link == "rplidar-standard" and kind is FaultKind.BIT_FLIP:
-        return  # a flipped distance or quality bit is invisible to this framing (README)
+    if link == "rplidar-standard" and verdict == "undetected":
+        # No checksum over standard nodes: a flipped distance bit is invisible, and a dropped or
+        # duplicated byte can (rarely: certify found one in ~1,000) realign onto 5-byte windows
+        # that pass every check bit. What the framing can guarantee is that every emitted beam
+        # is such a checked window of the received bytes (README finding); assert that instead.
+        windows = checked_node_windows(stream)
+        for scan in faulty:
+            q6 = np.rint(-np.rad2deg(scan.angles_rad) * 64).astype(int) % rp.Q6_PER_TURN
+            q2 = np.where(np.isnan(scan.ranges_m), 0, np.rint(scan.ranges_m * 4000)).astype(int)
+            assert scan.intensities is not None
+            for beam in zip(scan.intensities.astype(int), q6, q2, strict=True):
+                assert tuple(int(v) for v in beam) in windows
+        record.count(f"faults {link}", f"{kind.value} undetected, beams from checked windows", 1)
+        return
     assert verdict != "undetected", (link, kind, index)
 
 

@@ -22,7 +22,7 @@ from pipeline.sim.ego import ConstantSpeed, Ego, EgoSpec, Route
 from pipeline.sim.objects import FORKLIFT_KINDS
 from pipeline.sim.scenarios import build_scenario, make_simulation
 from pipeline.sim.simulation import SimResult
-from pipeline.sim.truth import LabelRules, ObjectClass, forklift_states
+from pipeline.sim.truth import STANDSTILL_MPS, LabelRules, ObjectClass, forklift_states
 from pipeline.sim.world import World
 from pipeline.types import FloatArray, IntArray
 from properties.oracles.sim import footprint_distances, overlaps_any
@@ -89,7 +89,7 @@ def _independent_states(
     v = np.gradient(traj.x_m, t) * np.cos(traj.heading_rad) + np.gradient(traj.y_m, t) * np.sin(
         traj.heading_rad
     )
-    v[np.abs(v) < 1e-9] = 0.0
+    v[np.abs(v) < STANDSTILL_MPS] = 0.0
     sign = np.sign(v)
     nz = np.flatnonzero(sign != 0)
     flips = np.flatnonzero(sign[nz][1:] != sign[nz][:-1])

@@ -209,6 +209,15 @@ def line_ok(line: bytes) -> bool:
     return len(line) >= 2 and line[-1] == checksum(line[:-1])
 
 
+def encoded_line_ok(line: bytes) -> bool:
+    """A line of encoded characters passes its checksum and stays in the alphabet.
+
+    The 6-bit checksum cannot see a flipped bit 6 or 7; such a flip always leaves the
+    alphabet ``0x30..0x6F``, so the two checks together catch every single bit flip.
+    """
+    return line_ok(line) and all(CHAR_MIN <= c <= CHAR_MAX for c in line[:-1])
+
+
 def encode_data_lines(values: npt.ArrayLike, width: int, timestamp_ms: int | None) -> list[bytes]:
     """Payloads of the data part of a scan response: optional timestamp line, then the
     encoded values in lines of 64 characters."""

@@ -22,7 +22,7 @@ from pipeline.drivers.scip import (
     ScipCommand,
     ScipParams,
     decode_data_lines,
-    line_ok,
+    encoded_line_ok,
     values_to_scan,
 )
 from pipeline.types import Scan
@@ -161,7 +161,7 @@ class ScipStream:
                 self._reject_answer()
                 self._state = _State.IDLE
                 return
-            if len(line) == 5 and line_ok(line):
+            if len(line) == 5 and encoded_line_ok(line):
                 self.counters.frames_ok += 1
             else:
                 self._reject_line(line)
@@ -171,7 +171,7 @@ class ScipStream:
         self._lines.append(line)  # DATA lines are normally taken by _data_lines
 
     def _status(self, line: bytes) -> None:
-        if len(line) != 3 or not line_ok(line):
+        if len(line) != 3 or not encoded_line_ok(line):
             self._reject_line(line)
             self._state = _State.SKIP
             return
@@ -180,7 +180,10 @@ class ScipStream:
         if status == b"99" or (status == b"00" and not self._streaming):
             self._state = _State.TIMESTAMP
         else:
-            # "00" acknowledges MD/MS without data; anything else is a device error status.
+            # "00" acknowledges MD/MS without data; anything else is a device error status,
+            # and while streaming it costs a revolution: count it so the monitors see it.
+            if self._streaming and status != b"00":
+                self.counters.scans_dropped += 1
             self._state = _State.SKIP
 
     def _reject_line(self, line: bytes) -> None:

@@ -5,8 +5,10 @@ Class labels (:class:`ObjectClass`) are the kinds of object, except that forklif
 drives them, with the thresholds of :class:`LabelRules`:
 
 * a **reversal** of a motion is a maximal time interval ``[a, b]`` (possibly a single instant)
-  on which the signed speed is zero, such that the last non-zero speed before ``a`` and the
-  first non-zero speed after ``b`` have opposite signs (forward, stop, backward);
+  on which the signed speed is zero (a speed below :data:`STANDSTILL_MPS`, 1 um/s, counts as
+  zero: a knot speed of -1e-283 m/s is rounding, not a change of direction), such that the
+  last non-zero speed before ``a`` and the first non-zero speed after ``b`` have opposite
+  signs (forward, stop, backward);
 * ``forklift_near_reversal`` at time ``t``: ``|v(t)| < near_reversal_speed_mps`` and some
   reversal ``[a, b]`` has ``a - reversal_window_s <= t <= b + reversal_window_s``;
 * ``forklift_stationary``: not near reversal and ``|v(t)| < stationary_speed_mps``;
@@ -31,9 +33,13 @@ from pipeline.sim.objects import FORKLIFT_KINDS, ObjectKind
 from pipeline.sim.world import World
 from pipeline.types import FloatArray, IntArray, frozen_array
 
+STANDSTILL_MPS = 1e-6
+"""Speeds below this magnitude [m/s] are standstill when finding reversals."""
+
 __all__ = [
     "CLASS_NAMES",
     "KIND_NAMES",
+    "STANDSTILL_MPS",
     "LabelRules",
     "ObjectClass",
     "ScanTruth",
@@ -98,7 +104,8 @@ def reversal_intervals(motion: Motion) -> FloatArray:
     Exact for the piecewise-linear speed: zero sets are runs of zero-speed knots or single
     crossings inside a knot segment.
     """
-    kt, kv = motion.knot_t_s, motion.knot_v_mps
+    kt = motion.knot_t_s
+    kv = np.where(np.abs(motion.knot_v_mps) < STANDSTILL_MPS, 0.0, motion.knot_v_mps)
     n = kt.size
     rows: list[tuple[float, float]] = []
     k = 0

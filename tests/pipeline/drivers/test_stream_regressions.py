@@ -90,3 +90,25 @@ def test_express_revolution_starting_in_a_gap_is_incomplete() -> None:
         assert all(s.n_beams == 720 for s in got if s.complete)
         assert any(not s.complete for s in got)
         assert judge(clean, clean_counters, got, counters) == "detected"
+
+
+@pytest.mark.requirement("SR-DRV-2", "SR-DRV-3", code=STREAMS)
+@pytest.mark.parametrize("bit", [6, 7])
+def test_scip_status_bit_flip_outside_the_checksum_is_rejected(bit: int) -> None:
+    # Certify found it: the 6-bit checksum cannot see bit 6 or 7, so a flip in the status
+    # "99" left a valid-looking "9\xb9" whose scan was skipped without a trace.
+    steps = np.arange(0, 1081)
+    rng = np.random.default_rng(11)
+    scans = [
+        Scan(0.0, (steps - 540) * (2 * np.pi / 1440), np.rint(rng.uniform(100, 9000, 1081)) / 1e3)
+        for _ in range(3)
+    ]
+    frames = device_frames("scip-md", scans)
+    clean, clean_counters = decode("scip-md", frames, frames.data)
+    index = next(i for i, f in enumerate(frames.frames) if f == b"99b\n")
+    faulty = list(frames.frames)
+    faulty[index] = b"9" + bytes([ord("9") ^ (1 << bit)]) + b"b\n"
+    got, counters = decode("scip-md", frames, frames.prefix + b"".join(faulty))
+    assert foreign_beams(clean, got) == 0
+    assert counters.frames_rejected > clean_counters.frames_rejected
+    assert judge(clean, clean_counters, got, counters) == "detected"

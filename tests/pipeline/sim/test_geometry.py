@@ -130,3 +130,23 @@ def test_bad_profiles_are_rejected() -> None:
         mo.Motion(np.array([0.0, 0.0]), np.array([1.0, 2.0]), np.zeros(1), np.zeros(1), "x")
     with pytest.raises(ValueError, match="reversing"):
         mo.reversing(-0.8, 1.0, 0.3, 0.0, 0.6, 1.0)
+
+
+def test_a_rounding_sized_negative_speed_is_not_a_reversal() -> None:
+    # Certify found it: a knot speed of -2e-283 m/s counted as a change of direction.
+    tiny = mo.Motion(
+        knot_t_s=np.array([0.0, 1.0]),
+        knot_v_mps=np.array([1.0, -2.0763659e-283]),
+        yaw_t_s=np.array([0.0]),
+        yaw_rate_rps=np.array([0.0]),
+        profile="accelerate",
+    )
+    assert reversal_intervals(tiny).shape == (0, 2)
+    real = mo.Motion(
+        knot_t_s=np.array([0.0, 1.0]),
+        knot_v_mps=np.array([1.0, -0.01]),
+        yaw_t_s=np.array([0.0]),
+        yaw_rate_rps=np.array([0.0]),
+        profile="accelerate",
+    )
+    assert reversal_intervals(real).shape == (1, 2)
