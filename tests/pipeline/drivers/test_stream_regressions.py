@@ -97,12 +97,9 @@ def test_express_revolution_starting_in_a_gap_is_incomplete() -> None:
 def test_scip_status_bit_flip_outside_the_checksum_is_rejected(bit: int) -> None:
     # Certify found it: the 6-bit checksum cannot see bit 6 or 7, so a flip in the status
     # "99" left a valid-looking "9\xb9" whose scan was skipped without a trace.
-    steps = np.arange(0, 1081)
+    angles = (np.arange(0, 1081, dtype=np.float64) - 540) * (2 * np.pi / 1440)
     rng = np.random.default_rng(11)
-    scans = [
-        Scan(0.0, (steps - 540) * (2 * np.pi / 1440), np.rint(rng.uniform(100, 9000, 1081)) / 1e3)
-        for _ in range(3)
-    ]
+    scans = [Scan(0.0, angles, np.rint(rng.uniform(100, 9000, 1081)) / 1e3) for _ in range(3)]
     frames = device_frames("scip-md", scans)
     clean, clean_counters = decode("scip-md", frames, frames.data)
     index = next(i for i, f in enumerate(frames.frames) if f == b"99b\n")
