@@ -269,20 +269,68 @@ class CostmapSection(_Section):
 
 
 class FusionSection(_Section):
-    """Thermal / radar / second-LiDAR fusion with freshness (SR-FUS-*)."""
+    """Thermal / radar fusion into LiDAR tracks with freshness (SR-FUS-1, SR-FUS-3).
+
+    A detection is fused only while its age ``now - stamp`` lies in ``[-clock_skew_s,
+    max_age - clock_skew_s]`` (:func:`pipeline.fusion.is_fresh`); ``clock_skew_s`` bounds how
+    far a sensor's stamps may differ from the decision clock (0: the sensors stamp with the
+    decision clock). Fresh thermal detections are matched one-to-one to live tracks within
+    ``gate_m``: a match raises the track's confidence by ``confidence_boost`` (at most 1), an
+    unmatched detection becomes a thermal-only pedestrian of confidence at most
+    ``thermal_only_confidence``, which must stay below ``classify.medium_confidence_min`` so the
+    governor gives it the most cautious tier. Radar Doppler speeds (standard deviation
+    ``radar_doppler_std_mps``) update the matched track's velocity. At most ``max_thermal`` /
+    ``max_radar`` fresh detections are used per cycle; any beyond are counted and the
+    operating-domain monitor stops the robot (never dropped silently).
+    """
 
     thermal_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
     radar_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
+    clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)
     gate_m: float = Field(2.0, gt=0.0, le=50.0)
     confidence_boost: float = Field(0.2, ge=0.0, le=1.0)
+    thermal_only_confidence: float = Field(0.3, ge=0.0, le=1.0)
+    radar_doppler_std_mps: float = Field(0.1, gt=0.0, le=10.0)
+    max_thermal: int = Field(64, ge=1, le=10_000)
+    max_radar: int = Field(64, ge=1, le=10_000)
+
+    @model_validator(mode="after")
+    def _skew_below_ages(self) -> Self:
+        for name in ("thermal_max_age_s", "radar_max_age_s"):
+            if self.clock_skew_s >= getattr(self, name):
+                raise ValueError(
+                    f"fusion.clock_skew_s ({self.clock_skew_s}) must be below fusion.{name} "
+                    f"({getattr(self, name)}): otherwise no detection is ever fresh"
+                )
+        return self
 
 
 class MonitorSection(_Section):
-    """Runtime monitors: staleness, deadline, operating domain (SR-FUS-*, SR-TIM-*)."""
+    """Runtime monitors: staleness, clock, deadline, operating domain (SR-FUS-2, SR-TIM-2).
+
+    STOP when the scan's first beam is older than ``scan_max_age_s`` at decision time (or
+    stamped more than ``clock_skew_s`` in the future), when the decision clock runs back by
+    more than ``max_clock_jump_back_s``, when a cycle takes longer than ``cycle_deadline_s``,
+    when more than ``max_blocked_fraction`` of the beams read below the minimum range (a
+    covered window) or when any per-cycle cap dropped something. An incomplete scan (frames
+    rejected by the driver) limits the speed to ``degraded_speed_mps``.
+    """
 
     scan_max_age_s: float = Field(0.25, gt=0.0, le=10.0)
     cycle_deadline_s: float = Field(0.1, gt=0.0, le=10.0)
     max_clock_jump_back_s: float = Field(0.0, ge=0.0, le=10.0)
+    clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)
+    max_blocked_fraction: float = Field(0.5, ge=0.0, le=1.0)
+    degraded_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _skew_below_age(self) -> Self:
+        if self.clock_skew_s >= self.scan_max_age_s:
+            raise ValueError(
+                f"monitors.clock_skew_s ({self.clock_skew_s}) must be below "
+                f"monitors.scan_max_age_s ({self.scan_max_age_s}): otherwise no scan is fresh"
+            )
+        return self
 
 
 class SimSection(_Section):
@@ -345,10 +393,17 @@ class SimSection(_Section):
 
 
 class AuditSection(_Section):
-    """Hash-chained audit log (SR-AUD-*)."""
+    """Hash-chained audit log (SR-AUD-*): one JSON line per cycle, see :mod:`safety.audit`.
+
+    The log is fsynced, and its signed head anchor rewritten, every ``fsync_every_records``
+    records and at close. ``signing_key`` is the Ed25519 key (PEM) that signs the anchor; empty
+    with ``sign_head`` true: the evidence signing key (:mod:`evidence.manifest`).
+    """
 
     log_dir: str = "out/audit"
     fsync_every_records: int = Field(10, ge=1, le=1_000_000)
+    sign_head: bool = False
+    signing_key: str = Field("", description="Ed25519 PEM key; empty: the evidence key")
 
 
 class SafecaseConfig(_Section):

@@ -22,6 +22,7 @@ from evidence.manifest import load_public_key, verify_bundle
 from pipeline.config import SafecaseConfig, config_hash, load_config, to_toml
 from pipeline.errors import ConfigError, SafecaseError
 from pipeline.sim.cli import app as sim_app
+from safety.audit_cli import app as audit_app
 
 app = typer.Typer(
     name="safecase",
@@ -35,6 +36,7 @@ config_app = typer.Typer(help="Show and check configurations.", no_args_is_help=
 app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
 app.add_typer(sim_app, name="sim")
+app.add_typer(audit_app, name="audit")
 
 err = Console(stderr=True, soft_wrap=True)
 out = Console(soft_wrap=True)

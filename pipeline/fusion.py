@@ -1,0 +1,310 @@
+"""Thermal and radar detections fused into the LiDAR tracks, with freshness (SR-FUS-1, SR-FUS-3).
+
+The freshness guard
+-------------------
+:func:`is_fresh` is the ONE definition of "recent enough to use", written with ``-``, ``<=``
+and ``&`` only, so the same function evaluates with floats, numpy arrays and z3 terms
+(properties/test_staleness.py proves the z3 reading). A detection stamped ``stamp_s`` on a
+sensor clock that may differ from the decision clock by at most ``skew_s`` is used at decision
+time ``now_s`` only when its reported age ``a = now_s - stamp_s`` satisfies
+
+    ``-skew_s <= a <= max_age_s - skew_s - guard_s``.
+
+Then its true age (decision time minus true capture time) is at most ``max_age_s``: the
+stamp is off by at most ``skew_s``. ``guard_s`` (1 ns at run time) absorbs float rounding: near
+the threshold the age is at most ``max_age_s <= 10 s`` (the configured bound), so each of the
+three rounded operations errs by at most half an ulp of 16 s (1.8e-15 s), far below 1 ns; with
+stamps on a common epoch (Unix seconds) ``now_s - stamp_s`` is even exact (Sterbenz). NaN and
+infinite stamps compare false and are never fresh. The same guard decides scan staleness in
+:mod:`safety.monitors`.
+
+Fusion
+------
+Fresh thermal detections are matched one-to-one to live (not dormant) tracks whose position,
+taken back to the detection's stamp at the track's velocity, lies within ``fusion.gate_m``:
+the global nearest-neighbour assignment (:func:`pipeline.track.associate.assign` on squared
+distances). A match raises the track's confidence by ``fusion.confidence_boost`` (capped at 1);
+an unmatched fresh detection becomes a thermal-only pedestrian whose confidence is below
+``classify.medium_confidence_min``, so the governor gives it the most cautious margin tier.
+Fresh radar returns are matched the same way and their Doppler range rate updates the matched
+track's state (:func:`doppler_update`); radar alone never creates an object. Stale detections
+are counted and skipped: the cycle falls back to LiDAR only (:attr:`FusionCounts.lidar_only`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from pipeline.config import SafecaseConfig
+from pipeline.errors import ConfigError, SafecaseError
+from pipeline.track.associate import assign
+from pipeline.types import (
+    BoolArray,
+    FloatArray,
+    FusedTracks,
+    FusionCounts,
+    IntArray,
+    RadarDetections,
+    ThermalDetections,
+    Tracks,
+    TrackStatus,
+)
+
+__all__ = [
+    "FRESHNESS_GUARD_S",
+    "FusionError",
+    "doppler_row",
+    "doppler_update",
+    "fuse",
+    "is_fresh",
+]
+
+# Time held back from every maximum age [s]: absorbs float rounding (see the module docstring).
+FRESHNESS_GUARD_S = 1e-9
+
+_LIVE = (TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.LOST)
+
+
+class FusionError(SafecaseError, ValueError):
+    """Fusion input that does not fit the tracks (a confidence array of the wrong length)."""
+
+
+def is_fresh(
+    now_s: Any, stamp_s: Any, max_age_s: Any, skew_s: Any, guard_s: Any = FRESHNESS_GUARD_S
+) -> Any:
+    """True where a detection stamped ``stamp_s`` may be used at ``now_s`` (SR-FUS-1, SR-FUS-2).
+
+    One definition, every reading (float, numpy, z3): the reported age must lie in
+    ``[-skew_s, max_age_s - skew_s - guard_s]`` [s]. With ``|stamp - true capture| <= skew_s``
+    this bounds the true age by ``max_age_s``; stamps further in the future than the skew
+    allows are refused too (the skew assumption is broken, so nothing can be concluded).
+    """
+    age_s = now_s - stamp_s
+    return (age_s >= -skew_s) & (age_s <= max_age_s - skew_s - guard_s)
+
+
+def doppler_row(bearing_rad: FloatArray) -> FloatArray:
+    """Measurement rows ``H`` (n, 4) of Doppler range rates for the CV state [x, y, vx, vy].
+
+    A target at bearing ``b`` from the radar moving at ``(vx, vy)`` relative to it has range
+    rate ``cos(b) vx + sin(b) vy``: linear in the state once the measured bearing is fixed, so
+    the update is an ordinary Kalman update with ``H = [0, 0, cos b, sin b]``.
+    """
+    h = np.zeros((bearing_rad.shape[0], 4))
+    h[:, 2] = np.cos(bearing_rad)
+    h[:, 3] = np.sin(bearing_rad)
+    return h
+
+
+def doppler_update(
+    x: FloatArray,
+    p: FloatArray,
+    bearing_rad: FloatArray,
+    radial_velocity_mps: FloatArray,
+    std_mps: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman update of states ``x`` (n, 4) and covariances ``p`` (n, 4, 4) with one Doppler
+    range rate each [m/s] of standard deviation ``std_mps`` (SR-FUS-1).
+
+    Scalar measurement ``z = H x + noise`` with ``H`` from :func:`doppler_row`; the covariance
+    uses the Joseph form ``(I - K H) P (I - K H)' + K R K'`` like filterpy's ``KalmanFilter``
+    (checked against it to 1e-9), batched over the leading axis.
+    """
+    h = doppler_row(bearing_rad)
+    r = std_mps * std_mps
+    ph = np.einsum("nij,nj->ni", p, h)  # P H'
+    s = np.einsum("ni,ni->n", h, ph) + r
+    k = ph / s[:, None]
+    y = radial_velocity_mps - np.einsum("ni,ni->n", h, x)
+    x_new = x + k * y[:, None]
+    hp = np.einsum("ni,nij->nj", h, p)  # H P
+    ap = p - k[:, :, None] * hp[:, None, :]  # (I - K H) P
+    aph = np.einsum("nij,nj->ni", ap, h)
+    p_new = ap - aph[:, :, None] * k[:, None, :] + r * k[:, :, None] * k[:, None, :]
+    return x_new, 0.5 * (p_new + np.swapaxes(p_new, 1, 2))
+
+
+def _classify_ages(
+    now_s: float, stamp_s: FloatArray, valid: BoolArray, max_age_s: float, skew_s: float
+) -> tuple[BoolArray, int, int]:
+    """Fresh mask among ``valid`` entries, and the counts of stale and future ones."""
+    fresh = valid & is_fresh(now_s, stamp_s, max_age_s, skew_s)
+    with np.errstate(invalid="ignore"):
+        future = valid & ~fresh & (now_s - stamp_s < -skew_s)
+    return fresh, int(np.count_nonzero(valid & ~fresh & ~future)), int(np.count_nonzero(future))
+
+
+def _cap(fresh: BoolArray, x_m: FloatArray, y_m: FloatArray, cap: int) -> tuple[IntArray, int]:
+    """Indices of the fresh detections kept (nearest ``cap`` to the robot) and the overflow."""
+    idx = np.flatnonzero(fresh)
+    if idx.shape[0] <= cap:
+        return idx.astype(np.int64), 0
+    order = np.argsort(np.hypot(x_m[idx], y_m[idx]), kind="stable")
+    return np.sort(idx[order[:cap]]).astype(np.int64), int(idx.shape[0] - cap)
+
+
+def _gated_match(
+    tracks: Tracks,
+    live: IntArray,
+    det_x_m: FloatArray,
+    det_y_m: FloatArray,
+    det_stamp_s: FloatArray,
+    gate_m: float,
+) -> tuple[IntArray, IntArray]:
+    """One-to-one nearest-neighbour pairs (detection, track) within ``gate_m``.
+
+    Each live track's position is taken back (or forward) to the detection's stamp at its
+    filtered velocity before measuring the distance.
+    """
+    if det_x_m.shape[0] == 0 or live.shape[0] == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty
+    state = tracks.state[live]
+    dt = det_stamp_s[:, None] - tracks.stamp_s
+    dx = det_x_m[:, None] - (state[None, :, 0] + state[None, :, 2] * dt)
+    dy = det_y_m[:, None] - (state[None, :, 1] + state[None, :, 3] * dt)
+    d2 = dx * dx + dy * dy
+    rows, cols = assign(np.where(d2 <= gate_m * gate_m, d2, np.inf))
+    return rows, live[cols]
+
+
+def _sort_detections(
+    sensor: str,
+    now_s: float,
+    tracks: Tracks,
+    live: IntArray,
+    stamp_s: FloatArray,
+    x_m: FloatArray,
+    y_m: FloatArray,
+    valid: BoolArray,
+    max_age_s: float,
+    cap: int,
+    config: SafecaseConfig,
+) -> tuple[IntArray, IntArray, IntArray, dict[str, int]]:
+    """Freshness, cap and gated matching of one sensor's detections.
+
+    Returns the kept (fresh, within the cap) detection indices, the positions in that list
+    that matched, the tracks they matched, and the counts named ``n_<sensor>_*``.
+    """
+    f = config.fusion
+    fresh, stale, future = _classify_ages(now_s, stamp_s, valid, max_age_s, f.clock_skew_s)
+    kept, over = _cap(fresh, x_m, y_m, cap)
+    rows, matched = _gated_match(tracks, live, x_m[kept], y_m[kept], stamp_s[kept], f.gate_m)
+    counts = {
+        f"n_{sensor}": int(stamp_s.shape[0]),
+        f"n_{sensor}_invalid": int(np.count_nonzero(~valid)),
+        f"n_{sensor}_stale": stale,
+        f"n_{sensor}_future": future,
+        f"n_{sensor}_over_cap": over,
+        f"n_{sensor}_matched": int(rows.shape[0]),
+    }
+    return kept, rows, matched, counts
+
+
+def _check(config: SafecaseConfig) -> None:
+    f = config.fusion
+    if f.thermal_only_confidence >= config.classify.medium_confidence_min:
+        raise ConfigError(
+            [
+                f"fusion.thermal_only_confidence ({f.thermal_only_confidence}) must be below "
+                f"classify.medium_confidence_min ({config.classify.medium_confidence_min}) so "
+                "that thermal-only pedestrians get the most cautious margin tier"
+            ]
+        )
+
+
+def fuse(
+    now_s: float,
+    tracks: Tracks,
+    config: SafecaseConfig,
+    *,
+    confidence: FloatArray | None = None,
+    thermal: ThermalDetections | None = None,
+    radar: RadarDetections | None = None,
+) -> FusedTracks:
+    """Fuse fresh thermal and radar detections into ``tracks`` at decision time ``now_s`` [s].
+
+    ``confidence`` is the classifier's per-track confidence in [0, 1] (default: unknown, 0;
+    non-finite values count as 0). Serves SR-FUS-1 (only fresh detections are fused; stale
+    ones give the LiDAR-only fallback) and SR-FUS-3 (unmatched fresh thermal detections become
+    low-confidence pedestrians). Raises :class:`FusionError` when ``confidence`` does not have
+    one entry per track and :class:`ConfigError` when the configuration would let thermal-only
+    pedestrians take a confident tier.
+    """
+    _check(config)
+    f = config.fusion
+    n = tracks.n
+    if confidence is None:
+        base = np.zeros(n)
+    else:
+        base = np.asarray(confidence, dtype=np.float64)
+        if base.shape != (n,):
+            raise FusionError(
+                f"fuse: confidence has shape {base.shape}; expected one value per track ({n},)"
+            )
+        base = np.where(np.isfinite(base), np.clip(base, 0.0, 1.0), 0.0)
+    live = np.flatnonzero(tracks.with_status(*_LIVE)).astype(np.int64)
+    conf = base.copy()
+    thermal_index = np.full(n, -1, dtype=np.int64)
+    radar_index = np.full(n, -1, dtype=np.int64)
+
+    thermal = thermal or ThermalDetections(np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+    valid = np.isfinite(thermal.stamp_s) & np.isfinite(thermal.x_m) & np.isfinite(thermal.y_m)
+    kept, rows, matched, counts = _sort_detections(
+        "thermal", now_s, tracks, live, thermal.stamp_s, thermal.x_m, thermal.y_m, valid,
+        f.thermal_max_age_s, f.max_thermal, config,
+    )  # fmt: skip
+    conf[matched] = np.minimum(conf[matched] + f.confidence_boost, 1.0)
+    thermal_index[matched] = kept[rows]
+    unmatched = np.ones(kept.shape[0], dtype=bool)
+    unmatched[rows] = False
+    ped = kept[unmatched]
+    # The detector's own score only ever lowers a pedestrian's confidence (NaN: ignored).
+    ped_conf = np.clip(np.fmin(thermal.confidence[ped], f.thermal_only_confidence), 0.0, None)
+    counts["n_thermal_only"] = int(ped.shape[0])
+
+    state, cov = tracks.state, tracks.covariance
+    if radar is not None and radar.n:
+        rx, ry = radar.x_m, radar.y_m
+        with np.errstate(invalid="ignore"):
+            valid = (
+                np.isfinite(radar.stamp_s)
+                & np.isfinite(rx)
+                & np.isfinite(ry)
+                & np.isfinite(radar.radial_velocity_mps)
+                & (radar.range_m >= 0.0)
+            )
+        kept, rows, matched, radar_counts = _sort_detections(
+            "radar", now_s, tracks, live, radar.stamp_s, rx, ry, valid,
+            f.radar_max_age_s, f.max_radar, config,
+        )  # fmt: skip
+        if rows.shape[0]:
+            used = kept[rows]
+            new_x, new_p = doppler_update(
+                state[matched],
+                cov[matched],
+                radar.bearing_rad[used],
+                radar.radial_velocity_mps[used],
+                f.radar_doppler_std_mps,
+            )
+            state, cov = state.copy(), cov.copy()
+            state[matched], cov[matched] = new_x, new_p
+            radar_index[matched] = used
+        counts.update(radar_counts, n_radar_unmatched=int(kept.shape[0] - rows.shape[0]))
+    fused_tracks = tracks if state is tracks.state else replace(tracks, state=state, covariance=cov)
+    return FusedTracks(
+        stamp_s=float(now_s),
+        tracks=fused_tracks,
+        confidence=conf,
+        thermal_index=thermal_index,
+        radar_index=radar_index,
+        pedestrian_x_m=thermal.x_m[ped],
+        pedestrian_y_m=thermal.y_m[ped],
+        pedestrian_stamp_s=thermal.stamp_s[ped],
+        pedestrian_confidence=ped_conf,
+        pedestrian_index=ped,
+        counts=FusionCounts(**counts),
+    )
