@@ -34,6 +34,7 @@ from evidence.model import Bundle, EvidenceItem, Outcome, compute_verdicts
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
 from evidence.report import write_bundle
+from pipeline.classify import model_provenance
 from pipeline.config import SafecaseConfig, config_hash, load_config
 from pipeline.errors import ConfigError, RequirementsError, SafecaseError
 
@@ -392,6 +393,7 @@ def _provenance(session: pytest.Session, state: _State) -> dict[str, Any]:
             "seed": cfg.getoption("hypothesis_seed", None),
         },
         "pytest_args": list(cfg.invocation_params.args),
+        "classifier_model": model_provenance(state.config.classify),
         **current().session_provenance,
     }
 

@@ -146,11 +146,24 @@ class TrackSection(_Section):
 
 
 class ClassifySection(_Section):
-    """Gradient-boosted tree classifier (source: depth 6, 150 estimators; SR-CLS-*)."""
+    """Gradient-boosted tree classifier (source: depth 6, 150 estimators; SR-CLS-*).
+
+    ``model_path``: XGBoost JSON model file (empty: the packaged one) with its card beside it;
+    ``model_sha256``: the hash it must have (empty: the one its card records). ``max_depth``,
+    ``n_estimators``, ``learning_rate``, ``max_bin`` (histogram bins per feature, so at most
+    that many distinct thresholds per feature, which keeps inference tables small) and
+    ``train_seed`` are what ``safecase train`` uses.
+    Confidence (probability of the chosen class) selects the margin tier: at least
+    ``high_confidence_min`` high, at least ``medium_confidence_min`` medium, else the most
+    cautious (near-reversal) tier and an any-direction prediction.
+    """
 
     model_path: str = Field("", description="model file; empty: the packaged model")
+    model_sha256: str = Field("", pattern=r"^([0-9a-fA-F]{64})?$")
     max_depth: int = Field(6, ge=1, le=16)
     n_estimators: int = Field(150, ge=1, le=5000)
+    learning_rate: float = Field(0.3, gt=0.0, le=1.0)
+    max_bin: int = Field(64, ge=2, le=1024)
     train_seed: int = Field(0, ge=0, le=2**32 - 1)
     high_confidence_min: float = Field(0.8, gt=0.0, le=1.0)
     medium_confidence_min: float = Field(0.5, gt=0.0, le=1.0)
@@ -166,7 +179,18 @@ class ClassifySection(_Section):
 
 
 class PredictSection(_Section):
-    """Motion prediction (source: 1.5 s horizon, +/-15 deg cone, reversal at 0.6 m/s)."""
+    """Motion prediction (source: 1.5 s horizon, +/-15 deg cone, reversal at 0.6 m/s; SR-PRED-*).
+
+    A moving object's speed bound is its filtered speed plus ``velocity_sigmas`` standard
+    deviations of the filter's velocity estimate; its cone widens beyond
+    ``cone_half_angle_deg`` when that uncertainty makes the heading less certain, and becomes a
+    full circle past 90 deg. Bodies are discs of at least ``min_body_radius_m``. Arcs and discs
+    are drawn as circumscribed polygons (arc pieces of at most ``arc_step_deg``, discs of
+    ``disc_sides`` sides), so the polygons contain the exact regions. A near-reversal track's
+    last confirmed heading is the direction of its centroid history when that spans at least
+    ``heading_min_travel_m``. ``step_s`` samples the horizon where a finite set of times is
+    needed (evaluation).
+    """
 
     horizon_s: float = Field(1.5, gt=0.0, le=10.0)
     step_s: float = Field(0.1, gt=0.0, le=1.0)
@@ -174,6 +198,11 @@ class PredictSection(_Section):
     reversal_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
     near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
     near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
+    velocity_sigmas: float = Field(2.0, ge=0.0, le=10.0)
+    min_body_radius_m: float = Field(0.1, gt=0.0, le=10.0)
+    arc_step_deg: float = Field(15.0, ge=1.0, le=45.0)
+    disc_sides: int = Field(12, ge=6, le=64)
+    heading_min_travel_m: float = Field(0.3, ge=0.0, le=10.0)
 
 
 ClosingClassName = Literal["static", "person", "forklift_reversing"]
@@ -261,11 +290,19 @@ class GeometrySection(_Section):
 
 
 class CostmapSection(_Section):
-    """Grid costmap of envelopes (SR-PRED-*)."""
+    """Grid costmap of envelopes (SR-PRED-2).
+
+    A ``width_m`` x ``height_m`` grid of square cells of ``resolution_m``, centred on
+    (``centre_x_m``, ``centre_y_m``) in the envelopes' frame. A cell is marked when it touches an
+    envelope; ``contact_tolerance_m`` widens "touches" to absorb rounding (conservative).
+    """
 
     resolution_m: float = Field(0.05, gt=0.0, le=1.0)
     width_m: float = Field(20.0, gt=0.0, le=500.0)
     height_m: float = Field(20.0, gt=0.0, le=500.0)
+    centre_x_m: float = Field(0.0, ge=-1000.0, le=1000.0)
+    centre_y_m: float = Field(0.0, ge=-1000.0, le=1000.0)
+    contact_tolerance_m: float = Field(1e-9, ge=0.0, le=1e-3)
 
 
 class FusionSection(_Section):

@@ -19,6 +19,7 @@ from rich.table import Table
 
 from evidence.catalogue import load_catalogue
 from evidence.manifest import load_public_key, verify_bundle
+from pipeline.classify_train import train_command
 from pipeline.config import SafecaseConfig, config_hash, load_config, to_toml
 from pipeline.errors import ConfigError, SafecaseError
 from pipeline.sim.cli import app as sim_app
@@ -37,6 +38,7 @@ app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
 app.add_typer(sim_app, name="sim")
 app.add_typer(audit_app, name="audit")
+app.command("train")(train_command)
 
 err = Console(stderr=True, soft_wrap=True)
 out = Console(soft_wrap=True)

@@ -47,6 +47,7 @@ __all__ = [
     "lidar_spec_from_config",
     "make_simulation",
     "place",
+    "simulation_for_spec",
 ]
 
 
@@ -347,6 +348,21 @@ def make_simulation(
     seed = sim.seed if seed is None else seed
     duration = sim.duration_s if duration_s is None else duration_s
     spec = build_scenario(name, seed, duration)
+    return simulation_for_spec(config, spec, name, seed, duration, lidar)
+
+
+def simulation_for_spec(
+    config: SafecaseConfig,
+    spec: ScenarioSpec,
+    name: str,
+    seed: int,
+    duration: float,
+    lidar: LidarSpec | None = None,
+) -> Simulation:
+    """A ready-to-run simulation of an already built scenario (e.g. one that is not in
+    :data:`SCENARIOS`), with the scanner noise and ego braking streams drawn from ``seed`` as
+    :func:`make_simulation` draws them."""
+    sim = config.sim
     _, lidar_ss, ego_ss = np.random.SeedSequence(seed).spawn(3)
     ego_rng = np.random.default_rng(ego_ss)
     max_speed = max(config.stopping.robot_max_speed_mps, sim.ego_speed_mps)

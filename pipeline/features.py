@@ -1,0 +1,136 @@
+"""The per-track feature vector of the classifier, vectorised over all tracks (SR-CLS-2).
+
+One code path for training and run time: :func:`track_features` reads only the tracker's
+snapshot (:class:`~pipeline.types.Tracks`) and the clusters of the same cycle. The ten
+features of the source material, in column order (:data:`FEATURE_NAMES`):
+
+==========================  ================================================================
+bbox_width_m                width of the track's latest oriented box (short side) [m]
+bbox_length_m               length of that box (long side) [m]
+bbox_area_m2                width x length [m^2]
+point_density_per_m2        points per box area of the cluster that updated the track this
+                            cycle; NaN when no cluster did (a coasting track)
+velocity_magnitude_mps      speed of the filtered velocity [m/s]
+velocity_direction_rad      angle between the velocity and the line of sight from the object
+                            to the robot, in [0, pi]: 0 heads straight at the robot, pi
+                            straight away (robot-relative, independent of the map frame)
+decel_estimate_mps2         least-squares deceleration of the filtered speed over the
+                            tracker's window (``track.decel_window_s``), > 0 when slowing
+track_age_frames            cycles since the track was born
+size_variance_m2            variance of width plus that of length over the size window
+is_near_reversal            1 when speed < ``predict.near_reversal_speed_mps`` (0.3 m/s) and
+                            deceleration > ``predict.near_reversal_decel_mps2`` (0.4 m/s^2),
+                            else 0
+==========================  ================================================================
+
+Frames. The velocity must be the object's own (ground) velocity, so the tracker should run in
+an odometry or map frame: :func:`detections_in_frame` moves the clusters' centroids there from
+the scanner frame with the scanner's pose. ``robot_xy_m`` is then the robot's position in that
+frame. (Tracking in the moving robot's own frame adds the robot's velocity to every track and
+its acceleration to every deceleration estimate; the training data use the odometry frame.)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pipeline.config import PredictSection
+from pipeline.track.tracker import Detections
+from pipeline.types import Clusters, FloatArray, TrackFeatures, Tracks
+
+__all__ = [
+    "FEATURE_NAMES",
+    "N_FEATURES",
+    "detections_in_frame",
+    "feature_index",
+    "track_features",
+]
+
+FEATURE_NAMES: tuple[str, ...] = (
+    "bbox_width_m",
+    "bbox_length_m",
+    "bbox_area_m2",
+    "point_density_per_m2",
+    "velocity_magnitude_mps",
+    "velocity_direction_rad",
+    "decel_estimate_mps2",
+    "track_age_frames",
+    "size_variance_m2",
+    "is_near_reversal",
+)
+N_FEATURES = len(FEATURE_NAMES)
+
+
+def feature_index(name: str) -> int:
+    """Column of the feature called ``name`` (raises ``KeyError`` naming the known ones)."""
+    try:
+        return FEATURE_NAMES.index(name)
+    except ValueError:
+        raise KeyError(f"unknown feature {name!r}; known: {', '.join(FEATURE_NAMES)}") from None
+
+
+def detections_in_frame(clusters: Clusters, pose: tuple[float, float, float]) -> Detections:
+    """The clusters' centroids moved from the scanner frame into a fixed frame (SR-CLS-2).
+
+    ``pose`` is the scanner's ``(x_m, y_m, yaw_rad)`` in that frame at the scan's stamp (from
+    odometry at run time, from the simulator's ground truth in training). Box sizes are
+    unchanged by a rigid motion.
+    """
+    x0, y0, yaw = (float(v) for v in pose)
+    if not all(math.isfinite(v) for v in (x0, y0, yaw)):
+        raise ValueError(f"detections_in_frame: pose {pose!r} must be finite (x_m, y_m, yaw_rad)")
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y = clusters.centroid_x_m, clusters.centroid_y_m
+    return Detections(
+        clusters.stamp_s,
+        x0 + c * x - s * y,
+        y0 + s * x + c * y,
+        clusters.width_m,
+        clusters.length_m,
+    )
+
+
+def track_features(
+    tracks: Tracks,
+    clusters: Clusters | None,
+    predict: PredictSection,
+    robot_xy_m: tuple[float, float] = (0.0, 0.0),
+) -> TrackFeatures:
+    """The ten features of every track of ``tracks`` (module docstring), one row per track.
+
+    ``clusters`` are the clusters of the same cycle (the ones the tracker's ``detection_index``
+    refers to); without them the point density is NaN. ``robot_xy_m`` is the robot's position
+    in the tracking frame. Served requirements: SR-CLS-1, SR-CLS-2.
+    """
+    n = tracks.n
+    out: FloatArray = np.empty((n, N_FEATURES))
+    width, length = tracks.width_m, tracks.length_m
+    out[:, 0] = width
+    out[:, 1] = length
+    out[:, 2] = width * length
+    density = np.full(n, np.nan)
+    if clusters is not None:
+        det = tracks.detection_index
+        have = (det >= 0) & (det < clusters.n)
+        density[have] = clusters.point_density_per_m2[det[have]]
+    out[:, 3] = density
+    vx, vy = tracks.state[:, 2], tracks.state[:, 3]
+    speed = np.hypot(vx, vy)
+    out[:, 4] = speed
+    # Line of sight from the object to the robot; the angle between two vectors from the
+    # cross and dot products (well conditioned at 0 and pi, unlike acos).
+    lx = robot_xy_m[0] - tracks.state[:, 0]
+    ly = robot_xy_m[1] - tracks.state[:, 1]
+    out[:, 5] = np.abs(np.arctan2(vx * ly - vy * lx, vx * lx + vy * ly))
+    decel = tracks.decel_mps2
+    out[:, 6] = decel
+    out[:, 7] = tracks.age_frames
+    out[:, 8] = tracks.size_variance_m2
+    out[:, 9] = (
+        (speed < predict.near_reversal_speed_mps) & (decel > predict.near_reversal_decel_mps2)
+    ).astype(np.float64)
+    return TrackFeatures(
+        stamp_s=tracks.stamp_s, track_id=tracks.track_id, status=tracks.status, values=out
+    )

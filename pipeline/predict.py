@@ -1,0 +1,316 @@
+"""Where may each tracked object be within the horizon? (SR-PRED-1)
+
+Per track, from its filtered state (position ``p``, velocity ``v`` and the velocity's
+covariance), its class and confidence (:class:`~pipeline.types.Classification`) and its
+features, over the horizon ``H`` (``predict.horizon_s``, 1.5 s):
+
+* speed bound ``s = |v| + k sigma_v`` (``k`` = ``predict.velocity_sigmas``, ``sigma_v`` the
+  largest standard deviation of the velocity estimate);
+* **moving** classes (forklift moving, pallet jack, person, vehicle): the reference
+  point stays in the sector of radius ``s H`` about the velocity's direction with half-angle
+  ``cone + asin(k sigma_v / |v|)`` (the source's +/-15 deg heading change plus the heading's
+  own uncertainty); past 90 deg the sector becomes the disc of radius ``s H``. If the object
+  keeps its speed at most ``s`` and its direction of travel inside that cone, its displacement
+  (an integral of velocities in a convex cone, each at most ``s``) lies in the sector;
+* **near reversal** (the class, or a forklift class with the ``is_near_reversal`` feature):
+  two modes about the *last confirmed heading* ``h`` (the direction of the track's centroid
+  history when it spans at least ``predict.heading_min_travel_m``, else the velocity's
+  direction when the speed is certain, else unknown): STOP, the sector of radius ``s H`` about
+  ``h``; REVERSE, that sector plus (Minkowski sum) the sector of radius ``r H`` about ``-h``
+  (``r`` = ``predict.reversal_speed_mps``, 0.6 m/s): carry on forwards, stop, back up at most
+  at ``r``. With ``h`` unknown both become discs;
+* **stationary and static** classes (stationary forklift, cart, static structure): the
+  footprint, i.e. the reference point itself;
+* **unscored or low confidence** (confidence below ``classify.medium_confidence_min``): any
+  direction, the disc of radius ``(s + r) H``, which holds every region above.
+
+Every track's body is a disc about its reference point: half the diagonal of its box, at
+least ``predict.min_body_radius_m``, plus ``k`` standard deviations of its position estimate.
+Arcs are drawn as circumscribed polygons (:func:`sector_points`), so hulls of the points
+returned contain the exact regions. Dormant tracks (not observed for several cycles) get no
+prediction. Margins are added by :mod:`safety.envelope`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pipeline.classify import FORKLIFT_CLASSES, NEAR_REVERSAL_CLASS, STILL_CLASSES
+from pipeline.config import SafecaseConfig
+from pipeline.features import feature_index
+from pipeline.types import (
+    BoolArray,
+    Classification,
+    FloatArray,
+    PredictionMode,
+    Predictions,
+    TrackFeatures,
+    Tracks,
+    TrackStatus,
+)
+
+__all__ = [
+    "confirmed_heading_rad",
+    "disc_points",
+    "largest_std",
+    "minkowski",
+    "predict",
+    "sector_points",
+    "track_modes",
+]
+
+_NEAR_REVERSAL_FEATURE = feature_index("is_near_reversal")
+
+
+def largest_std(cov: FloatArray) -> FloatArray:
+    """Square root of the largest eigenvalue of each symmetric 2x2 matrix in ``cov`` (n, 2, 2)."""
+    a, b, d = cov[:, 0, 0], 0.5 * (cov[:, 0, 1] + cov[:, 1, 0]), cov[:, 1, 1]
+    half_trace = 0.5 * (a + d)
+    root = np.sqrt(np.maximum(0.25 * (a - d) ** 2 + b * b, 0.0))
+    result: FloatArray = np.sqrt(np.maximum(half_trace + root, 0.0))
+    return result
+
+
+def disc_points(cx: FloatArray, cy: FloatArray, radius: FloatArray, sides: int) -> FloatArray:
+    """(n, sides, 2) vertices of regular polygons circumscribing the discs (contain them)."""
+    angle = (np.arange(sides) + 0.5) * (2.0 * math.pi / sides)
+    outer = radius / math.cos(math.pi / sides)
+    out = np.empty((cx.shape[0], sides, 2))
+    out[:, :, 0] = cx[:, None] + outer[:, None] * np.cos(angle)[None, :]
+    out[:, :, 1] = cy[:, None] + outer[:, None] * np.sin(angle)[None, :]
+    return out
+
+
+def sector_points(
+    cx: FloatArray,
+    cy: FloatArray,
+    heading_rad: FloatArray,
+    half_angle_rad: FloatArray,
+    radius_m: FloatArray,
+    arc_step_rad: float,
+    disc_sides: int,
+) -> FloatArray:
+    """(n, P, 2) points whose hull contains each circular sector (apex, heading, half-angle).
+
+    The arc is split into ``m = ceil(2 alpha / arc_step_rad)`` equal pieces and replaced by the
+    tangent lines at the piece ends (they meet at radius ``R / cos(piece / 2)``), so the
+    polygon contains the sector. A half-angle of 90 deg or more, or a NaN heading, gives the
+    disc of radius ``R`` (:func:`disc_points`); rows with fewer points repeat the apex.
+    """
+    n = cx.shape[0]
+    disc = ~np.isfinite(heading_rad) | (half_angle_rad >= 0.5 * math.pi)
+    alpha = np.where(disc, 0.0, np.clip(half_angle_rad, 0.0, 0.5 * math.pi))
+    pieces = np.maximum(np.ceil(2.0 * alpha / arc_step_rad).astype(np.int64), 1)
+    most = int(pieces.max(initial=1))
+    width = max(most + 3, disc_sides)
+    out = np.empty((n, width, 2))
+    out[:, :, 0] = cx[:, None]
+    out[:, :, 1] = cy[:, None]
+    h = np.where(disc, 0.0, heading_rad)
+    step = 2.0 * alpha / pieces
+    start = h - alpha
+    out[:, 1, 0] = cx + radius_m * np.cos(start)
+    out[:, 1, 1] = cy + radius_m * np.sin(start)
+    k = np.arange(most)[None, :]
+    mid = start[:, None] + (k + 0.5) * step[:, None]
+    outer = (radius_m / np.cos(0.5 * step))[:, None]
+    used = k < pieces[:, None]
+    out[:, 2 : 2 + most, 0] = np.where(used, cx[:, None] + outer * np.cos(mid), cx[:, None])
+    out[:, 2 : 2 + most, 1] = np.where(used, cy[:, None] + outer * np.sin(mid), cy[:, None])
+    end = h + alpha
+    last = 2 + pieces
+    rows = np.arange(n)
+    out[rows, last, 0] = cx + radius_m * np.cos(end)
+    out[rows, last, 1] = cy + radius_m * np.sin(end)
+    if disc.any():
+        ring = disc_points(cx[disc], cy[disc], radius_m[disc], disc_sides)
+        out[disc] = np.concatenate(
+            [ring, np.repeat(ring[:, :1], width - disc_sides, axis=1)], axis=1
+        )
+    return out
+
+
+def minkowski(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Minkowski sums of convex polygons, row by row: (n, Ka + Kb, 2) counter-clockwise vertices.
+
+    ``a`` (n, Ka, 2) and ``b`` (n, Kb, 2) list each row's vertices counter-clockwise; repeated
+    points (padding) and degenerate rows (a point, a segment traversed there and back) are
+    fine. The sum's edges are the two polygons' edges merged by angle, starting from the sum
+    of their lowest (then leftmost) vertices; zero-length edges add nothing. The result may
+    hold repeated and collinear points (its hull is the sum).
+    """
+    n = a.shape[0]
+    start = _lowest(a) + _lowest(b)
+    edges = np.concatenate([np.roll(a, -1, axis=1) - a, np.roll(b, -1, axis=1) - b], axis=1)
+    angle = np.mod(np.arctan2(edges[:, :, 1], edges[:, :, 0]), 2.0 * math.pi)
+    order = np.argsort(angle, axis=1, kind="stable")
+    ordered = np.take_along_axis(edges, order[:, :, None], axis=1)
+    out = np.empty((n, edges.shape[1], 2))
+    out[:, 0] = start
+    out[:, 1:] = start[:, None, :] + np.cumsum(ordered[:, :-1], axis=1)
+    return out
+
+
+def _lowest(p: FloatArray) -> FloatArray:
+    """(n, 2): each row's lowest point, the leftmost of those at the lowest y."""
+    y = p[:, :, 1]
+    at_min = y == y.min(axis=1, keepdims=True)
+    pick = np.where(at_min, p[:, :, 0], np.inf).argmin(axis=1)
+    lowest: FloatArray = p[np.arange(p.shape[0]), pick]
+    return lowest
+
+
+def confirmed_heading_rad(
+    tracks: Tracks, speed: FloatArray, sigma_v: FloatArray, config: SafecaseConfig
+) -> FloatArray:
+    """Last confirmed heading per track [rad]; NaN when not known (module docstring)."""
+    hist = tracks.history_xy_m
+    valid = ~np.isnan(hist[:, :, 0])
+    n = tracks.n
+    first = np.argmax(valid, axis=1)
+    rows = np.arange(n)
+    newest = hist[:, -1, :]  # the history is newest-last, padded at the front
+    oldest = hist[rows, first, :]
+    dx, dy = newest[:, 0] - oldest[:, 0], newest[:, 1] - oldest[:, 1]
+    travel = np.hypot(dx, dy)
+    k = config.predict.velocity_sigmas
+    from_history = valid.any(axis=1) & (travel >= config.predict.heading_min_travel_m)
+    from_velocity = ~from_history & (speed > k * sigma_v) & (speed > 0.0)
+    vx, vy = tracks.state[:, 2], tracks.state[:, 3]
+    heading = np.full(n, np.nan)
+    heading[from_history] = np.arctan2(dy[from_history], dx[from_history])
+    heading[from_velocity] = np.arctan2(vy[from_velocity], vx[from_velocity])
+    return heading
+
+
+def track_modes(
+    classification: Classification, near_reversal_feature: BoolArray, medium_confidence_min: float
+) -> tuple[BoolArray, BoolArray, BoolArray, BoolArray]:
+    """Per track: (near_reversal, footprint, cone, unknown) masks, exactly one of them true.
+
+    Unknown: unscored or confidence below ``medium_confidence_min``. Near reversal: the
+    near-reversal class, or any forklift class with the ``is_near_reversal`` feature set.
+    Footprint: a stationary or static class. Cone: every other (moving) class.
+    """
+    names = classification.class_names
+    index = classification.class_index
+
+    def member(group: frozenset[str]) -> BoolArray:
+        codes = [i for i, name in enumerate(names) if name in group]
+        found: BoolArray = np.isin(index, codes) & (index >= 0)
+        return found
+
+    trusted = (index >= 0) & (classification.confidence >= medium_confidence_min)
+    near = trusted & (
+        member(frozenset({NEAR_REVERSAL_CLASS}))
+        | (member(FORKLIFT_CLASSES) & near_reversal_feature)
+    )
+    still = trusted & ~near & member(STILL_CLASSES)
+    cone = trusted & ~near & ~still
+    return near, still, cone, ~trusted
+
+
+def predict(
+    tracks: Tracks,
+    features: TrackFeatures,
+    classification: Classification,
+    config: SafecaseConfig,
+) -> Predictions:
+    """Prediction rows for every non-dormant track (module docstring; SR-PRED-1).
+
+    ``features`` and ``classification`` must come from ``tracks`` (same rows, same order).
+    """
+    if not (
+        np.array_equal(features.track_id, tracks.track_id)
+        and np.array_equal(classification.track_id, tracks.track_id)
+    ):
+        raise ValueError("predict: tracks, features and classification must list the same tracks")
+    pc = config.predict
+    horizon, k = pc.horizon_s, pc.velocity_sigmas
+    live = tracks.status != int(TrackStatus.DORMANT)
+    px, py = tracks.state[:, 0], tracks.state[:, 1]
+    vx, vy = tracks.state[:, 2], tracks.state[:, 3]
+    speed = np.hypot(vx, vy)
+    sigma_v = largest_std(tracks.covariance[:, 2:, 2:])
+    sigma_p = largest_std(tracks.covariance[:, :2, :2])
+    bound = speed + k * sigma_v
+    half_diag = 0.5 * np.hypot(np.nan_to_num(tracks.width_m), np.nan_to_num(tracks.length_m))
+    body = np.maximum(half_diag, pc.min_body_radius_m) + k * sigma_p
+
+    confidence = classification.confidence
+    flagged = features.values[:, _NEAR_REVERSAL_FEATURE] > 0.5
+    near, footprint, cone, unknown = track_modes(
+        classification, flagged, config.classify.medium_confidence_min
+    )
+
+    heading_v = np.arctan2(vy, vx)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spread = np.where(
+            speed > k * sigma_v, np.arcsin(np.minimum(k * sigma_v / speed, 1.0)), np.pi
+        )
+    cone_half = math.radians(pc.cone_half_angle_deg)
+    confirmed = confirmed_heading_rad(tracks, speed, sigma_v, config)
+
+    # One entry per (track, mode); near-reversal tracks get two.
+    parts: list[tuple[BoolArray, PredictionMode]] = [
+        (live & footprint, PredictionMode.FOOTPRINT),
+        (live & cone, PredictionMode.CONE),
+        (live & near, PredictionMode.STOP),
+        (live & near, PredictionMode.REVERSE),
+        (live & unknown, PredictionMode.UNKNOWN),
+    ]
+    order = np.concatenate([np.flatnonzero(mask) for mask, _ in parts])
+    modes = np.concatenate(
+        [np.full(int(mask.sum()), int(mode), dtype=np.int64) for mask, mode in parts]
+    )
+    # Sort by track, then mode, so rows of one track are adjacent.
+    perm = np.lexsort((modes, order))
+    rows, modes = order[perm], modes[perm]
+
+    arc = math.radians(pc.arc_step_deg)
+    sides = pc.disc_sides
+    x, y = px[rows], py[rows]
+    is_mode = {m: modes == int(m) for m in PredictionMode}
+    heading = np.full(rows.shape[0], np.nan)
+    heading[is_mode[PredictionMode.CONE]] = heading_v[rows][is_mode[PredictionMode.CONE]]
+    two_mode = is_mode[PredictionMode.STOP] | is_mode[PredictionMode.REVERSE]
+    heading[two_mode] = confirmed[rows][two_mode]
+    half = np.where(
+        is_mode[PredictionMode.CONE], cone_half + spread[rows], np.where(two_mode, cone_half, np.pi)
+    )
+    reach_speed = bound[rows].copy()
+    reach_speed[is_mode[PredictionMode.FOOTPRINT]] = 0.0
+    reach_speed[is_mode[PredictionMode.UNKNOWN]] += pc.reversal_speed_mps
+    main = sector_points(x, y, heading, half, reach_speed * horizon, arc, sides)
+    reverse = is_mode[PredictionMode.REVERSE]
+    reach = main
+    if reverse.any():
+        r = int(reverse.sum())
+        back = sector_points(
+            np.zeros(r),
+            np.zeros(r),
+            heading[reverse] + math.pi,
+            np.full(r, cone_half),
+            np.full(r, pc.reversal_speed_mps * horizon),
+            arc,
+            sides,
+        )
+        summed = minkowski(main[reverse], back)
+        reach = np.repeat(main[:, :1], summed.shape[1], axis=1)
+        reach[:, : main.shape[1]] = main
+        reach[reverse] = summed
+    return Predictions(
+        stamp_s=tracks.stamp_s,
+        horizon_s=horizon,
+        track_id=tracks.track_id[rows],
+        mode=modes,
+        class_index=classification.class_index[rows],
+        confidence=confidence[rows],
+        near_reversal=two_mode,
+        speed_mps=np.where(reverse, np.maximum(reach_speed, pc.reversal_speed_mps), reach_speed),
+        heading_rad=heading,
+        body_radius_m=body[rows],
+        reach_xy_m=reach,
+    )

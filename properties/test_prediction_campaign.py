@@ -1,0 +1,139 @@
+"""Campaign: the whole perception chain on simulator runs, envelopes against the future (SR-PRED-1).
+
+Each scan goes through clustering, tracking (world frame), features, the configured classifier,
+prediction and envelopes. For every track that follows a simulated object, the object's LiDAR
+returns during the next ``predict.horizon_s`` (the surfaces the robot will see) are checked
+against that track's envelopes (all its modes) built at the earlier scan. Reported, not
+asserted: outside the property's assumptions (a reversal faster than the configured 0.6 m/s,
+which the simulator's forklifts do at up to 0.9 m/s; a body seen from one side, so its box
+underestimates it; a track still converging) a return may fall outside, and the campaign
+shows how often. The exact claim is the property in ``test_prediction.py``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict, deque
+
+import numpy as np
+import pytest
+import shapely
+
+from evidence.profiles import active_profile
+from evidence.record import Recorder
+from pipeline.classify import Classifier
+from pipeline.classify_data import Cycle, RunSpec, perceive
+from pipeline.config import SafecaseConfig
+from pipeline.predict import predict
+from pipeline.sim.truth import CLASS_NAMES
+from pipeline.types import PredictionMode
+from properties.oracles.geometry import shapely_polygons
+from safety.costmap import CostmapBuilder
+from safety.envelope import EnvelopeBuilder
+
+RUNS_CI = (
+    RunSpec("reversing_forklift_aisle", 7, 12.0),
+    RunSpec("reversal_drill", 7, 12.0),
+    RunSpec("crossing_pedestrian", 7, 12.0),
+)
+RUNS_CERTIFY = tuple(
+    RunSpec(name, seed, 20.0)
+    for seed in range(200_000, 200_004)
+    for name in (
+        "reversing_forklift_aisle",
+        "reversal_drill",
+        "crossing_pedestrian",
+        "pallet_jack_slow",
+        "forklift_pass_by",
+        "dolly_train_turn",
+        "random_encounter",
+    )
+)
+
+
+def _returns_world(cycle: Cycle) -> dict[int, np.ndarray]:
+    """Each object's returns of this scan in the world frame, by object id."""
+    truth, points = cycle.frame.truth, cycle.points
+    owner = truth.beams.owner_id[points.beam_index]
+    sx, sy, syaw = (float(v) for v in truth.scanner_pose)
+    c, s = np.cos(syaw), np.sin(syaw)
+    wx = sx + c * points.x_m - s * points.y_m
+    wy = sy + s * points.x_m + c * points.y_m
+    return {
+        int(o): np.stack([wx[owner == o], wy[owner == o]], axis=1)
+        for o in np.unique(owner[owner >= 0])
+    }
+
+
+@pytest.mark.requirement(
+    "SR-PRED-1", kind="campaign", code=["pipeline/predict.py", "safety/envelope.py"]
+)
+def test_future_returns_fall_inside_the_envelopes(
+    safecase_config: SafecaseConfig, evidence: Recorder
+) -> None:
+    config = safecase_config
+    classifier = Classifier.from_config(config.classify)
+    builder = EnvelopeBuilder(config)
+    steps = round(config.predict.horizon_s / config.track.frame_period_s)
+    runs = RUNS_CERTIFY if active_profile() == "certify" else RUNS_CI
+    costmap = CostmapBuilder(config.costmap)
+    stage_s: dict[str, list[float]] = {
+        "classify": [],
+        "predict": [],
+        "envelopes": [],
+        "costmap": [],
+    }
+    inside: defaultdict[tuple[str, str], int] = defaultdict(int)
+    total: defaultdict[tuple[str, str], int] = defaultdict(int)
+    for spec in runs:
+        window: deque[list[tuple[int, str, str, object]]] = deque(maxlen=steps)
+        for cycle in perceive(config, spec, {}):
+            returns = _returns_world(cycle)
+            for past in window:  # envelopes of earlier scans within the horizon
+                for obj, label, mode, shape in past:
+                    pts = returns.get(obj)
+                    if pts is None or not len(pts):
+                        continue
+                    hit = shapely.intersects_xy(shape, pts[:, 0], pts[:, 1])
+                    inside[(label, mode)] += int(hit.sum())
+                    total[(label, mode)] += int(hit.shape[0])
+            t0 = time.perf_counter()
+            classification = classifier.classify(cycle.features)
+            t1 = time.perf_counter()
+            pred = predict(cycle.tracks, cycle.features, classification, config)
+            t2 = time.perf_counter()
+            pose = cycle.frame.truth.scanner_pose
+            robot = builder.build(pred, classifier.class_names, (pose[0], pose[1], pose[2]))
+            t3 = time.perf_counter()
+            costmap.rasterize(robot.polygons)
+            t4 = time.perf_counter()
+            for stage, dt in zip(stage_s, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
+                stage_s[stage].append(dt)
+            env = builder.build(pred, classifier.class_names)  # world frame, for the check
+            shapes = shapely_polygons(env.polygons)
+            entry = []
+            for i, tid in enumerate(cycle.tracks.track_id):
+                obj = int(cycle.object_of[i])
+                rows = np.flatnonzero(env.track_id == tid)
+                if obj < 0 or not rows.size or cycle.label[i] < 0:
+                    continue
+                mode = "+".join(sorted({PredictionMode(int(m)).name for m in env.mode[rows]}))
+                union = shapely.union_all(shapes[rows]).buffer(1e-9)
+                entry.append((obj, CLASS_NAMES[int(cycle.label[i])], mode, union))
+            window.append(entry)
+    table = []
+    for key in sorted(total, key=lambda k: -total[k]):
+        label, mode = key
+        table.append([label, mode, total[key], f"{inside[key] / total[key]:.1%}"])
+    all_in, all_n = sum(inside.values()), sum(total.values())
+    evidence.table(
+        "future LiDAR returns inside the envelopes built up to 1.5 s earlier",
+        ["true class then", "prediction mode", "returns checked", "inside"],
+        table,
+        caption=f"{len(runs)} simulator runs ({active_profile()} profile); overall "
+        f"{all_in / max(all_n, 1):.2%} of {all_n} returns inside",
+    )
+    evidence.counts("future returns", {"checked": all_n, "inside": all_in})
+    for stage, values in stage_s.items():
+        evidence.samples(f"per scan: {stage}", values, unit="s")
+    assert all_n > 0, "no returns were checked"
