@@ -115,7 +115,7 @@ def test_malformed_polygons_raise(points: list[list[float]], error: type, words:
     assert "polygon 0" in str(info.value)
 
 
-@pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/swept.py", "pipeline/types.py"])
+@pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/swept.py", "pipeline/types/"])
 def test_malformed_poses_and_inputs_raise() -> None:
     theta = np.zeros((5, 2))
     theta[3, 1] = math.nan

@@ -68,7 +68,7 @@ def test_safe_speed_is_zero_when_not_even_standstill_fits() -> None:
 
 
 @pytest.mark.requirement(
-    "SR-STOP-1", kind="example", code=["pipeline/config.py", "safety/stopping.py"]
+    "SR-STOP-1", kind="example", code=["pipeline/config/", "safety/stopping.py"]
 )
 def test_default_caps_come_from_the_computed_limits() -> None:
     params = StoppingParams.from_config(default_config())

@@ -1,0 +1,244 @@
+"""Validated configuration of the whole pipeline, one section per stage (requirement SR-CFG-*).
+
+The defaults live here, in code; a TOML file given with ``--config FILE`` overrides any subset
+of them (a table per section, e.g. ``[cluster] eps_m = 0.2``). Every field carries its unit in
+its name. Validation is strict: an unknown key, a wrong type or a value outside its allowed
+range raises :class:`~pipeline.errors.ConfigError` whose lines each name the key, the value and
+what is allowed. :func:`config_hash` is a stable SHA-256 over the canonical JSON form of the
+values, recorded in every evidence bundle and audit log.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+from annotated_types import Ge, Gt, Le, Lt
+from pydantic import BaseModel, ValidationError, model_validator
+from pydantic.fields import FieldInfo
+
+from pipeline.config.base import Section
+from pipeline.config.sections_perception import (
+    ClassifySection,
+    ClusterSection,
+    DriverSection,
+    FusionSection,
+    PredictSection,
+    ScanSection,
+    TrackSection,
+)
+from pipeline.config.sections_safety import (
+    AuditSection,
+    CostmapSection,
+    GeometrySection,
+    GovernorSection,
+    MonitorSection,
+    StoppingSection,
+)
+from pipeline.config.sections_sim import SimSection
+from pipeline.errors import ConfigError
+
+__all__ = [
+    "AuditSection",
+    "ClassifySection",
+    "ClusterSection",
+    "CostmapSection",
+    "DriverSection",
+    "FusionSection",
+    "GeometrySection",
+    "GovernorSection",
+    "MonitorSection",
+    "PredictSection",
+    "SafecaseConfig",
+    "ScanSection",
+    "SimSection",
+    "StoppingSection",
+    "TrackSection",
+    "config_hash",
+    "default_config",
+    "load_config",
+    "overridden",
+    "to_toml",
+    "validate_config",
+]
+
+
+class SafecaseConfig(Section):
+    """The whole configuration: one section per stage of the data path."""
+
+    driver: DriverSection = DriverSection()
+    scan: ScanSection = ScanSection()
+    cluster: ClusterSection = ClusterSection()
+    track: TrackSection = TrackSection()
+    classify: ClassifySection = ClassifySection()
+    predict: PredictSection = PredictSection()
+    stopping: StoppingSection = StoppingSection()
+    governor: GovernorSection = GovernorSection()
+    geometry: GeometrySection = GeometrySection()
+    costmap: CostmapSection = CostmapSection()
+    fusion: FusionSection = FusionSection()
+    monitors: MonitorSection = MonitorSection()
+    sim: SimSection = SimSection()
+    audit: AuditSection = AuditSection()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _reject_non_finite(cls, data: Any) -> Any:
+        # pydantic accepts nan/inf for plain float fields with no bound; no safety parameter
+        # may be non-finite, so reject them here with the key named.
+        if isinstance(data, Mapping):
+            for section, values in data.items():
+                if isinstance(values, Mapping):
+                    for key, value in values.items():
+                        if isinstance(value, float) and not math.isfinite(value):
+                            raise ConfigError(
+                                [f"{section}.{key} = {value!r}: allowed: a finite number"]
+                            )
+        return data
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a JSON string is a valid TOML basic string
+    raise TypeError(f"to_toml: cannot write {type(value).__name__} value {value!r}")
+
+
+def to_toml(data: Mapping[str, Mapping[str, Any]]) -> str:
+    """Write section tables of scalars as TOML (what ``load_config`` reads back)."""
+    lines: list[str] = []
+    for section, values in data.items():
+        lines.append(f"[{section}]")
+        lines.extend(f"{key} = {_toml_value(value)}" for key, value in values.items())
+        lines.append("")
+    return "\n".join(lines)
+
+
+def default_config() -> SafecaseConfig:
+    """The built-in configuration (every default from code)."""
+    return SafecaseConfig()
+
+
+def config_hash(config: SafecaseConfig) -> str:
+    """Stable SHA-256 (hex) of the configuration's values, independent of key order."""
+    canonical = json.dumps(
+        config.model_dump(mode="json"), sort_keys=True, separators=(",", ":"), allow_nan=False
+    )
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def _field_info(loc: tuple[int | str, ...]) -> FieldInfo | None:
+    model: type[BaseModel] = SafecaseConfig
+    info: FieldInfo | None = None
+    for part in loc:
+        if not isinstance(part, str) or part not in model.model_fields:
+            return None
+        info = model.model_fields[part]
+        annotation = info.annotation
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            model = annotation
+    return info
+
+
+def _allowed(loc: tuple[int | str, ...], err_type: str) -> str:
+    """Describe what a key accepts, from the field's own declaration."""
+    if err_type == "extra_forbidden":
+        parent: type[BaseModel] = SafecaseConfig
+        for part in loc[:-1]:
+            info = parent.model_fields.get(str(part))
+            if info is None or not (
+                isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)
+            ):
+                break
+            parent = info.annotation
+        return "one of the keys " + ", ".join(sorted(parent.model_fields))
+    info = _field_info(loc)
+    if info is None:
+        return "see `safecase config show` for the keys and defaults"
+    bounds: list[str] = []
+    for meta in info.metadata:
+        if isinstance(meta, Ge):
+            bounds.append(f">= {meta.ge}")
+        elif isinstance(meta, Gt):
+            bounds.append(f"> {meta.gt}")
+        elif isinstance(meta, Le):
+            bounds.append(f"<= {meta.le}")
+        elif isinstance(meta, Lt):
+            bounds.append(f"< {meta.lt}")
+    annotation = info.annotation
+    kind = {"float": "number", "int": "integer", "str": "string", "bool": "boolean"}.get(
+        getattr(annotation, "__name__", ""), str(annotation)
+    )
+    article = "an" if kind[:1] in "aeiou" else "a"
+    if getattr(annotation, "__origin__", None) is Literal:
+        return "one of " + ", ".join(repr(a) for a in annotation.__args__)  # type: ignore[union-attr]
+    if bounds:
+        return f"{article} {kind} " + " and ".join(bounds)
+    return f"{article} {kind}"
+
+
+def _format_errors(error: ValidationError, origin: str) -> list[str]:
+    lines = []
+    for item in error.errors(include_url=False):
+        loc = tuple(item["loc"])
+        key = ".".join(str(p) for p in loc) or "<top level>"
+        value = item.get("input")
+        shown = "<missing>" if item["type"] == "missing" else repr(value)
+        if item["type"] == "extra_forbidden":
+            lines.append(f"{origin}: unknown key {key}; allowed: {_allowed(loc, item['type'])}")
+            continue
+        message = str(item["msg"])
+        if item["type"] == "value_error" and "ctx" in item:
+            lines.append(f"{origin}: {message.removeprefix('Value error, ')}")
+            continue
+        lines.append(
+            f"{origin}: {key} = {shown}: {message}; allowed: {_allowed(loc, item['type'])}"
+        )
+    return lines
+
+
+def validate_config(data: Mapping[str, Any], origin: str = "config") -> SafecaseConfig:
+    """Build a :class:`SafecaseConfig` from nested mappings (sections of keys).
+
+    Raises :class:`ConfigError` naming every bad key, its value and what is allowed.
+    """
+    try:
+        return SafecaseConfig.model_validate(dict(data))
+    except ConfigError as exc:
+        raise ConfigError([f"{origin}: {line}" for line in exc.lines]) from None
+    except ValidationError as exc:
+        raise ConfigError(_format_errors(exc, origin)) from None
+
+
+def load_config(path: Path | str | None = None) -> SafecaseConfig:
+    """Load the defaults, overridden by the TOML file at ``path`` when given (SR-CFG-1)."""
+    if path is None:
+        return default_config()
+    file = Path(path)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError([f"{file}: cannot read the configuration file: {exc.strerror}"]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError([f"{file}: not valid TOML: {exc}"]) from None
+    return validate_config(data, origin=str(file))
+
+
+def overridden(config: SafecaseConfig, updates: Mapping[str, Mapping[str, Any]]) -> SafecaseConfig:
+    """A copy of ``config`` with section values replaced, validated like a file would be."""
+    data: dict[str, Any] = config.model_dump(mode="python")
+    for section, values in updates.items():
+        merged = dict(data.get(section, {}))
+        merged.update(values)
+        data[section] = merged
+    return validate_config(data, origin="override")

@@ -1,0 +1,210 @@
+"""Configuration sections of the perception stages (drivers to prediction, fusion)."""
+
+from __future__ import annotations
+
+from typing import Literal, Self
+
+from pydantic import Field, model_validator
+
+from pipeline.config.base import Section
+
+
+class DriverSection(Section):
+    """Serial LiDAR transport (requirements SR-DRV-*).
+
+    ``rplidar_mode`` "express" asks for express capsules, whose XOR checksum covers every
+    distance; "standard" nodes carry three check bits only (see README "Serial drivers").
+    ``incomplete_policy``: a revolution that lost beams to a rejected frame is emitted with
+    ``complete=False`` ("mark") or withheld ("drop"); its rejected beams are never emitted.
+    ``max_step_deg``: largest plausible angle step between two RPLIDAR nodes.
+    """
+
+    protocol: Literal["rplidar", "scip"] = "rplidar"
+    port_url: str = Field("", description="pyserial URL or device path; empty: no device")
+    baudrate_bps: int = Field(115200, ge=9600, le=4_000_000)
+    read_timeout_s: float = Field(0.05, gt=0.0, le=5.0)
+    silent_timeout_s: float = Field(0.5, gt=0.0, le=30.0)
+    reconnect_backoff_s: float = Field(0.2, ge=0.0, le=30.0)
+    max_reconnects: int = Field(10, ge=0, le=10_000)
+    rplidar_mode: Literal["standard", "express"] = "express"
+    scip_command: Literal["MD", "MS"] = "MD"
+    incomplete_policy: Literal["mark", "drop"] = "mark"
+    max_beams_per_revolution: int = Field(8192, ge=16, le=65_536)
+    max_step_deg: float = Field(10.0, gt=0.0, le=90.0)
+
+
+class ScanSection(Section):
+    """Scan sanitation before clustering (requirement SR-TRK-*, SR-DRV-*)."""
+
+    min_range_m: float = Field(0.05, ge=0.0, le=10.0)
+    max_range_m: float = Field(30.0, gt=0.0, le=200.0)
+    max_beams: int = Field(2048, ge=16, le=16384)
+    # Pose of the scanner in the robot frame: points are reported in the robot frame.
+    mount_x_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_y_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_yaw_rad: float = Field(0.0, ge=-6.2832, le=6.2832)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.min_range_m >= self.max_range_m:
+            raise ValueError(
+                f"scan.min_range_m ({self.min_range_m}) must be below "
+                f"scan.max_range_m ({self.max_range_m})"
+            )
+        return self
+
+
+class ClusterSection(Section):
+    """DBSCAN on scan points (source: eps 0.15 m, min_samples 3, 4..200 points)."""
+
+    eps_m: float = Field(0.15, gt=0.0, le=2.0)
+    min_samples: int = Field(3, ge=1, le=100)
+    min_points: int = Field(4, ge=1, le=10_000)
+    max_points: int = Field(200, ge=1, le=10_000)
+    max_clusters: int = Field(64, ge=1, le=1024)
+    # Floor of the box area used for point density, so a line-shaped cluster (zero-width box)
+    # gets a finite density.
+    density_min_area_m2: float = Field(0.01, gt=0.0, le=100.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.min_points > self.max_points:
+            raise ValueError(
+                f"cluster.min_points ({self.min_points}) must not exceed "
+                f"cluster.max_points ({self.max_points})"
+            )
+        return self
+
+
+class TrackSection(Section):
+    """Kalman tracking and re-identification (source material numbers; SR-TRK-*)."""
+
+    frame_period_s: float = Field(0.1, gt=0.0, le=1.0)
+    history_frames: int = Field(15, ge=2, le=1000)
+    decel_window_s: float = Field(0.5, gt=0.0, le=10.0)
+    size_variance_frames: int = Field(10, ge=2, le=1000)
+    process_accel_std_mps2: float = Field(1.0, gt=0.0, le=50.0)
+    measurement_std_m: float = Field(0.05, gt=0.0, le=5.0)
+    gate_euclidean_m: float = Field(2.0, gt=0.0, le=50.0)
+    gate_mahalanobis_chi2: float = Field(9.21, gt=0.0, le=1000.0)
+    confirm_hits: int = Field(3, ge=1, le=100)
+    lost_after_misses: int = Field(2, ge=1, le=100)
+    dormant_after_misses: int = Field(5, ge=1, le=1000)
+    dormant_timeout_frames: int = Field(50, ge=1, le=100_000)
+    dormant_gate_factor: float = Field(3.0, ge=1.0, le=100.0)
+    dormant_size_tolerance_frac: float = Field(0.3, ge=0.0, le=10.0)
+    max_dormant: int = Field(50, ge=0, le=10_000)
+    dormant_prediction_cap_s: float = Field(3.0, ge=0.0, le=60.0)
+    max_tracks: int = Field(64, ge=1, le=10_000)
+    reid_enabled: bool = True
+    max_detections: int = Field(64, ge=1, le=10_000)
+    init_velocity_std_mps: float = Field(2.0, gt=0.0, le=100.0)
+    # Size comparison for re-identification: |a - b| <= tolerance * max(a, b, floor), so
+    # leg-sized clusters are not refused over a few centimetres of noise.
+    reid_size_floor_m: float = Field(0.1, ge=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.lost_after_misses > self.dormant_after_misses:
+            raise ValueError(
+                f"track.lost_after_misses ({self.lost_after_misses}) must not exceed "
+                f"track.dormant_after_misses ({self.dormant_after_misses})"
+            )
+        return self
+
+
+class ClassifySection(Section):
+    """Gradient-boosted tree classifier (source: depth 6, 150 estimators; SR-CLS-*).
+
+    ``model_path``: XGBoost JSON model file (empty: the packaged one) with its card beside it;
+    ``model_sha256``: the hash it must have (empty: the one its card records). ``max_depth``,
+    ``n_estimators``, ``learning_rate``, ``max_bin`` (histogram bins per feature, so at most
+    that many distinct thresholds per feature, which keeps inference tables small) and
+    ``train_seed`` are what ``safecase train`` uses.
+    Confidence (probability of the chosen class) selects the margin tier: at least
+    ``high_confidence_min`` high, at least ``medium_confidence_min`` medium, else the most
+    cautious (near-reversal) tier and an any-direction prediction.
+    """
+
+    model_path: str = Field("", description="model file; empty: the packaged model")
+    model_sha256: str = Field("", pattern=r"^([0-9a-fA-F]{64})?$")
+    max_depth: int = Field(6, ge=1, le=16)
+    n_estimators: int = Field(150, ge=1, le=5000)
+    learning_rate: float = Field(0.3, gt=0.0, le=1.0)
+    max_bin: int = Field(64, ge=2, le=1024)
+    train_seed: int = Field(0, ge=0, le=2**32 - 1)
+    high_confidence_min: float = Field(0.8, gt=0.0, le=1.0)
+    medium_confidence_min: float = Field(0.5, gt=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.medium_confidence_min > self.high_confidence_min:
+            raise ValueError(
+                f"classify.medium_confidence_min ({self.medium_confidence_min}) must not "
+                f"exceed classify.high_confidence_min ({self.high_confidence_min})"
+            )
+        return self
+
+
+class PredictSection(Section):
+    """Motion prediction (source: 1.5 s horizon, +/-15 deg cone, reversal at 0.6 m/s; SR-PRED-*).
+
+    A moving object's speed bound is its filtered speed plus ``velocity_sigmas`` standard
+    deviations of the filter's velocity estimate; its cone widens beyond
+    ``cone_half_angle_deg`` when that uncertainty makes the heading less certain, and becomes a
+    full circle past 90 deg. Bodies are discs of at least ``min_body_radius_m``. Arcs and discs
+    are drawn as circumscribed polygons (arc pieces of at most ``arc_step_deg``, discs of
+    ``disc_sides`` sides), so the polygons contain the exact regions. A near-reversal track's
+    last confirmed heading is the direction of its centroid history when that spans at least
+    ``heading_min_travel_m``. ``step_s`` samples the horizon where a finite set of times is
+    needed (evaluation).
+    """
+
+    horizon_s: float = Field(1.5, gt=0.0, le=10.0)
+    step_s: float = Field(0.1, gt=0.0, le=1.0)
+    cone_half_angle_deg: float = Field(15.0, ge=0.0, le=90.0)
+    reversal_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
+    near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
+    near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
+    velocity_sigmas: float = Field(2.0, ge=0.0, le=10.0)
+    min_body_radius_m: float = Field(0.1, gt=0.0, le=10.0)
+    arc_step_deg: float = Field(15.0, ge=1.0, le=45.0)
+    disc_sides: int = Field(12, ge=6, le=64)
+    heading_min_travel_m: float = Field(0.3, ge=0.0, le=10.0)
+
+
+class FusionSection(Section):
+    """Thermal / radar fusion into LiDAR tracks with freshness (SR-FUS-1, SR-FUS-3).
+
+    A detection is fused only while its age ``now - stamp`` lies in ``[-clock_skew_s,
+    max_age - clock_skew_s]`` (:func:`pipeline.fusion.is_fresh`); ``clock_skew_s`` bounds how
+    far a sensor's stamps may differ from the decision clock (0: the sensors stamp with the
+    decision clock). Fresh thermal detections are matched one-to-one to live tracks within
+    ``gate_m``: a match raises the track's confidence by ``confidence_boost`` (at most 1), an
+    unmatched detection becomes a thermal-only pedestrian of confidence at most
+    ``thermal_only_confidence``, which must stay below ``classify.medium_confidence_min`` so the
+    governor gives it the most cautious tier. Radar Doppler speeds (standard deviation
+    ``radar_doppler_std_mps``) update the matched track's velocity. At most ``max_thermal`` /
+    ``max_radar`` fresh detections are used per cycle; any beyond are counted and the
+    operating-domain monitor stops the robot (never dropped silently).
+    """
+
+    thermal_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
+    radar_max_age_s: float = Field(0.2, gt=0.0, le=10.0)
+    clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)
+    gate_m: float = Field(2.0, gt=0.0, le=50.0)
+    confidence_boost: float = Field(0.2, ge=0.0, le=1.0)
+    thermal_only_confidence: float = Field(0.3, ge=0.0, le=1.0)
+    radar_doppler_std_mps: float = Field(0.1, gt=0.0, le=10.0)
+    max_thermal: int = Field(64, ge=1, le=10_000)
+    max_radar: int = Field(64, ge=1, le=10_000)
+
+    @model_validator(mode="after")
+    def _skew_below_ages(self) -> Self:
+        for name in ("thermal_max_age_s", "radar_max_age_s"):
+            if self.clock_skew_s >= getattr(self, name):
+                raise ValueError(
+                    f"fusion.clock_skew_s ({self.clock_skew_s}) must be below fusion.{name} "
+                    f"({getattr(self, name)}): otherwise no detection is ever fresh"
+                )
+        return self

@@ -1,0 +1,224 @@
+"""Scan points, clusters and tracks (SR-TRK-*)."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.types.core import BoolArray, FloatArray, IntArray, freeze_fields
+
+
+@dataclass(frozen=True, slots=True)
+class DropCounts:
+    """How many beams of one scan sanitation kept and dropped, by reason (SR-TRK-1).
+
+    The categories are disjoint and add up: ``n_beams == n_valid + n_dropped``. ``n_inf``
+    counts +inf and -inf; ``n_below_min`` / ``n_above_max`` count finite ranges outside the
+    configured ``[scan.min_range_m, scan.max_range_m]`` (negative ranges are below minimum).
+    Runtime monitors read these counts (a scan that is mostly dropped is an ODD violation).
+    """
+
+    n_beams: int
+    n_valid: int
+    n_nan: int
+    n_inf: int
+    n_below_min: int
+    n_above_max: int
+
+    def __post_init__(self) -> None:
+        parts = (self.n_valid, self.n_nan, self.n_inf, self.n_below_min, self.n_above_max)
+        if min(parts) < 0 or sum(parts) != self.n_beams:
+            raise ValueError(f"DropCounts: categories {parts} must be >= 0 and sum to n_beams")
+
+    @property
+    def n_dropped(self) -> int:
+        """Beams that did not become points."""
+        return self.n_beams - self.n_valid
+
+
+@dataclass(frozen=True, slots=True)
+class ScanPoints:
+    """The valid beams of one scan as Cartesian points in the robot frame (SR-TRK-1).
+
+    Points are ordered by sensor bearing ``angle_rad`` (wrapped to [-pi, pi)), which the
+    clustering stage exploits; ``beam_index`` is each point's index in the original scan.
+    ``range_m`` is the sensor range (the distance from the sensor, not from the robot origin).
+    """
+
+    stamp_s: float
+    x_m: FloatArray
+    y_m: FloatArray
+    angle_rad: FloatArray
+    range_m: FloatArray
+    beam_index: IntArray
+    drops: DropCounts
+
+    def __post_init__(self) -> None:
+        freeze_fields(self, ("x_m", "y_m", "angle_rad", "range_m"), np.float64)
+        freeze_fields(self, ("beam_index",), np.int64)
+        n = self.x_m.shape[0]
+        for name in ("y_m", "angle_rad", "range_m", "beam_index"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"ScanPoints: {name} must have shape ({n},)")
+
+    @property
+    def n(self) -> int:
+        """Number of points."""
+        return int(self.x_m.shape[0])
+
+
+@dataclass(frozen=True, slots=True)
+class ClusterCounts:
+    """What the clustering stage found and discarded in one scan (SR-TRK-2, SR-TIM-3)."""
+
+    n_found: int
+    n_too_small: int
+    n_too_large: int
+    n_over_cap: int
+    n_noise_points: int
+    n_border_points: int
+
+
+@dataclass(frozen=True, slots=True)
+class Clusters:
+    """Kept clusters of one scan with their geometry, struct of arrays (SR-TRK-2).
+
+    One entry per cluster: centroid (mean of its points), the minimum-area oriented bounding
+    box (``width_m <= length_m``, ``heading_rad`` the direction of the long side in
+    [-pi/2, pi/2)), ``area_m2`` of that box, ``point_density_per_m2`` (points per box area,
+    area floored at ``cluster.density_min_area_m2``), ``n_points``, and the convex hull:
+    counter-clockwise vertices of cluster ``k`` are ``hull_x_m[hull_offsets[k]:hull_offsets[k
+    + 1]]`` (one vertex for coincident points, two for collinear ones). ``point_labels`` gives,
+    for every point of the :class:`ScanPoints` the clusters came from, its kept cluster index
+    or -1 (noise, or a cluster dropped by the size filter or the cap).
+    """
+
+    stamp_s: float
+    centroid_x_m: FloatArray
+    centroid_y_m: FloatArray
+    width_m: FloatArray
+    length_m: FloatArray
+    heading_rad: FloatArray
+    area_m2: FloatArray
+    point_density_per_m2: FloatArray
+    n_points: IntArray
+    hull_x_m: FloatArray
+    hull_y_m: FloatArray
+    hull_offsets: IntArray
+    point_labels: IntArray
+    counts: ClusterCounts
+
+    def __post_init__(self) -> None:
+        per_cluster = (
+            "centroid_x_m",
+            "centroid_y_m",
+            "width_m",
+            "length_m",
+            "heading_rad",
+            "area_m2",
+            "point_density_per_m2",
+        )
+        freeze_fields(self, (*per_cluster, "hull_x_m", "hull_y_m"), np.float64)
+        freeze_fields(self, ("n_points", "hull_offsets", "point_labels"), np.int64)
+        n = self.centroid_x_m.shape[0]
+        for name in (*per_cluster, "n_points"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"Clusters: {name} must have shape ({n},)")
+        if self.hull_offsets.shape != (n + 1,) or self.hull_x_m.shape != self.hull_y_m.shape:
+            raise ValueError("Clusters: hull_offsets must have n + 1 entries")
+
+    @property
+    def n(self) -> int:
+        """Number of kept clusters."""
+        return int(self.centroid_x_m.shape[0])
+
+    def hull(self, k: int) -> FloatArray:
+        """Hull vertices of cluster ``k`` as an (h, 2) array, counter-clockwise."""
+        lo, hi = int(self.hull_offsets[k]), int(self.hull_offsets[k + 1])
+        return np.stack([self.hull_x_m[lo:hi], self.hull_y_m[lo:hi]], axis=1)
+
+
+class TrackStatus(enum.IntEnum):
+    """Lifecycle state of a track (SR-TRK-4). Deleted tracks are not reported."""
+
+    TENTATIVE = 0
+    CONFIRMED = 1
+    LOST = 2
+    DORMANT = 3
+
+
+@dataclass(frozen=True, slots=True)
+class Tracks:
+    """Snapshot of the tracker after one cycle, struct of arrays (SR-TRK-3, SR-TRK-4).
+
+    One entry per live or dormant track, ordered by ``track_id``. ``state`` rows are
+    ``[x_m, y_m, vx_mps, vy_mps]`` in the robot frame and ``covariance`` their 4x4
+    covariances; for a DORMANT track both are as of its last update (``last_update_s``).
+    ``detection_index`` is the index of the detection that updated the track this cycle or -1.
+    ``history_xy_m`` holds the last ``history_len`` centroids (oldest first, padded with NaN),
+    ``decel_mps2`` the least-squares deceleration of the filtered speed over the configured
+    window (positive when slowing), ``size_variance_m2`` the variance of width plus that of
+    length over the configured frames. ``reid_count`` counts re-identifications of the track.
+    """
+
+    stamp_s: float
+    track_id: IntArray
+    status: IntArray
+    state: FloatArray
+    covariance: FloatArray
+    detection_index: IntArray
+    age_frames: IntArray
+    hits: IntArray
+    misses: IntArray
+    last_update_s: FloatArray
+    width_m: FloatArray
+    length_m: FloatArray
+    size_variance_m2: FloatArray
+    decel_mps2: FloatArray
+    history_xy_m: FloatArray
+    history_len: IntArray
+    reid_count: IntArray
+
+    def __post_init__(self) -> None:
+        freeze_fields(
+            self,
+            (
+                "state",
+                "covariance",
+                "last_update_s",
+                "width_m",
+                "length_m",
+                "size_variance_m2",
+                "decel_mps2",
+                "history_xy_m",
+            ),
+            np.float64,
+        )
+        freeze_fields(
+            self,
+            (
+                "track_id",
+                "status",
+                "detection_index",
+                "age_frames",
+                "hits",
+                "misses",
+                "history_len",
+                "reid_count",
+            ),
+            np.int64,
+        )
+        n = self.track_id.shape[0]
+        if self.state.shape != (n, 4) or self.covariance.shape != (n, 4, 4):
+            raise ValueError(f"Tracks: state must be ({n}, 4) and covariance ({n}, 4, 4)")
+
+    @property
+    def n(self) -> int:
+        """Number of tracks in the snapshot (dormant included)."""
+        return int(self.track_id.shape[0])
+
+    def with_status(self, *statuses: TrackStatus) -> BoolArray:
+        """Mask of the tracks whose status is one of ``statuses``."""
+        return np.isin(self.status, [int(s) for s in statuses])
