@@ -16,8 +16,10 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from evidence.profiles import examples
-from evidence.record import Recorder
-from pipeline.config import SafecaseConfig
+from evidence.record import Recorder, current
+from pipeline.config import SafecaseConfig, validate_config
+from pipeline.errors import ConfigError
+from pipeline.types import Action
 from properties.oracles.stopping import check_against_simulation
 from properties.smt import ProofResult, Verdict, decimal_text, prove
 from properties.stopping_obligations import (
@@ -32,6 +34,7 @@ from properties.stopping_obligations import (
     tier_result,
     worst_corner_obligation,
 )
+from safety.monitors import Observation, scan_freshness
 from safety.stopping import (
     ISO13855_WALKING_SPEED_MPS,
     StoppingParams,
@@ -311,3 +314,34 @@ def test_margin_by_confidence_is_monotone_in_every_reading(
     assert np.all(np.diff(margins) >= 0.0), (order, near, margins)
     scalar = [runtime.margin_for(float(c), bool(r)) for c, r in zip(order, near, strict=True)]
     assert np.array_equal(margins, np.array(scalar))
+
+
+# ------------------------------------------------------------------------- SR-STOP-5
+@pytest.mark.requirement("SR-STOP-5", code=["pipeline/config/__init__.py", "safety/monitors.py"])
+@given(
+    latency_s=st.floats(0.01, 1.0),
+    max_age_s=st.floats(0.01, 1.0),
+    skew_s=st.floats(0.0, 0.009),
+    age_s=st.floats(-0.05, 1.5),
+)
+def test_monitor_never_passes_data_older_than_the_proof_assumes(
+    latency_s: float, max_age_s: float, skew_s: float, age_s: float
+) -> None:
+    data = {
+        "stopping": {"perception_latency_s": latency_s},
+        "monitors": {"scan_max_age_s": max_age_s, "clock_skew_s": skew_s},
+    }
+    if max_age_s > latency_s:
+        with pytest.raises(ConfigError, match=r"monitors\.scan_max_age_s .* must not exceed"):
+            validate_config(data)
+        current().count("configurations", "rejected (monitor looser than the proof)", 1)
+        return
+    config = validate_config(data)
+    # The stamp may be off by up to the skew, so the true age can be age_s + skew_s.
+    now_s = 100.0
+    verdict = scan_freshness(Observation(now_s=now_s, scan_stamp_s=now_s - age_s), config.monitors)
+    if verdict.action is Action.PROCEED:
+        assert age_s + skew_s <= config.stopping.perception_latency_s + 1e-12
+        current().count("cycles", "passed, within the proof's latency", 1)
+    else:
+        current().count("cycles", "stopped as stale", 1)

@@ -86,6 +86,18 @@ class SafecaseConfig(Section):
     sim: SimSection = SimSection()
     audit: AuditSection = AuditSection()
 
+    @model_validator(mode="after")
+    def _monitor_enforces_the_proved_latency(self) -> SafecaseConfig:
+        # SR-STOP-5: the stopping proof assumes data at most perception_latency_s old at
+        # decision time; the freshness monitor is what guarantees it, so it may not allow more.
+        if self.monitors.scan_max_age_s > self.stopping.perception_latency_s:
+            raise ValueError(
+                f"monitors.scan_max_age_s ({self.monitors.scan_max_age_s}) must not exceed "
+                f"stopping.perception_latency_s ({self.stopping.perception_latency_s}): the "
+                "monitor would pass data older than the stopping proof assumes"
+            )
+        return self
+
     @model_validator(mode="before")
     @classmethod
     def _reject_non_finite(cls, data: Any) -> Any:

@@ -22,7 +22,10 @@ class StoppingSection(Section):
     (computed and proved by properties/test_stopping.py), rounded down to 1 mm/s.
     """
 
-    perception_latency_s: float = Field(0.08, ge=0.0, le=2.0)
+    # The largest age of the scan's first beam at decision time (SR-STOP-5): one revolution
+    # (0.1 s at 10 Hz: the first beam is that old when the scan completes) plus the source's
+    # 80 ms p99 processing latency. The scan-freshness monitor enforces it.
+    perception_latency_s: float = Field(0.18, ge=0.0, le=2.0)
     latency_source: str = Field("config", description="where perception_latency_s came from")
     control_cycle_s: float = Field(0.1, gt=0.0, le=1.0)
     decel_min_mps2: float = Field(1.25, gt=0.0, le=20.0)
@@ -32,9 +35,9 @@ class StoppingSection(Section):
     margin_high_m: float = Field(0.4, ge=0.0, le=20.0)
     margin_medium_m: float = Field(0.7, ge=0.0, le=20.0)
     margin_near_reversal_m: float = Field(1.0, ge=0.0, le=20.0)
-    speed_cap_high_mps: float = Field(0.719, ge=0.0, le=10.0)
-    speed_cap_medium_mps: float = Field(1.0, ge=0.0, le=10.0)
-    speed_cap_near_reversal_mps: float = Field(0.796, ge=0.0, le=10.0)
+    speed_cap_high_mps: float = Field(0.592, ge=0.0, le=10.0)
+    speed_cap_medium_mps: float = Field(0.896, ge=0.0, le=10.0)
+    speed_cap_near_reversal_mps: float = Field(0.651, ge=0.0, le=10.0)
     closing_class_high: ClosingClassName = "static"
     closing_class_medium: ClosingClassName = "static"
     closing_class_near_reversal: ClosingClassName = "forklift_reversing"
@@ -119,7 +122,7 @@ class MonitorSection(Section):
     rejected by the driver) limits the speed to ``degraded_speed_mps``.
     """
 
-    scan_max_age_s: float = Field(0.25, gt=0.0, le=10.0)
+    scan_max_age_s: float = Field(0.18, gt=0.0, le=10.0)
     cycle_deadline_s: float = Field(0.1, gt=0.0, le=10.0)
     max_clock_jump_back_s: float = Field(0.0, ge=0.0, le=10.0)
     clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)

@@ -23,7 +23,8 @@ def governor() -> Governor:
 
 
 def _expected(distance_m: float, closing_mps: float) -> float:
-    return float(safe_speed_mps(distance_m - 1e-9, 0.18, 0.5, 1.25, closing_mps))
+    reaction_s = StoppingParams.from_config(default_config()).reaction_s  # 0.18 + 0.1 s
+    return float(safe_speed_mps(distance_m - 1e-9, reaction_s, 0.5, 1.25, closing_mps))
 
 
 def test_far_obstacles_and_no_obstacles_proceed(governor: Governor) -> None:
@@ -45,21 +46,21 @@ def test_near_obstacle_slows_to_the_safe_speed_with_the_reason(governor: Governo
 
 
 def test_tier_cap_applies_inside_the_margin_band_only(governor: Governor) -> None:
-    # Near-reversal: margin 1.0 m, cap 0.796 m/s. A static obstacle 1.05 m away allows 1 m/s.
+    # Near-reversal: margin 1.0 m, cap 0.651 m/s. A static obstacle 1.05 m away allows 1 m/s.
     outside = governor.command(0.0, [1.05], closing_speed_mps=0.0, near_reversal=[True])
     assert outside.action is Action.PROCEED
     inside = governor.command(0.0, [0.95], closing_speed_mps=0.0, near_reversal=[True])
-    assert _expected(0.95, 0.0) > 0.796
+    assert _expected(0.95, 0.0) > 0.651
     assert inside.action is Action.SLOW
-    assert inside.speed_mps == 0.796
-    assert "tier cap 0.796 m/s" in inside.reasons[0]
+    assert inside.speed_mps == 0.651
+    assert "tier cap 0.651 m/s" in inside.reasons[0]
 
 
 def test_unknown_confidence_takes_the_most_cautious_tier(governor: Governor) -> None:
     known = governor.command(0.0, [0.95], closing_speed_mps=0.0, confidence=[0.9])
     unknown = governor.command(0.0, [0.95], closing_speed_mps=0.0)
     assert known.speed_mps == 1.0
-    assert unknown.speed_mps == 0.796
+    assert unknown.speed_mps == 0.651
     # Unknown closing speed: the worst class (a person at 1.6 m/s).
     assert governor.command(0.0, [2.0]).speed_mps == pytest.approx(_expected(2.0, 1.6))
 
@@ -71,7 +72,8 @@ def test_stop_when_no_moving_speed_fits(governor: Governor) -> None:
     assert "no speed >= 0.05 m/s can stop within it" in command.reasons[0]
     # With no minimum moving speed the governor creeps instead.
     config = overridden(default_config(), {"governor": {"min_moving_speed_mps": 0.0}})
-    assert Governor(config).command(0.0, [0.02], 0.0, 0.9).action is Action.SLOW
+    # 4 cm: more than the 2.7 cm that standstill needs (0.5 m/s^2 for 0.28 s, then braking).
+    assert Governor(config).command(0.0, [0.04], 0.0, 0.9).action is Action.SLOW
 
 
 @pytest.mark.requirement("SR-STOP-2", kind="example", code=GOVERNOR)

@@ -63,7 +63,7 @@ def test_stale_missing_and_future_scans_stop() -> None:
     assert stale.action is Action.STOP
     assert (
         stale.reason
-        == "stale scan: first beam 0.300000 s old, more than monitors.scan_max_age_s = 0.25 s"
+        == "stale scan: first beam 0.300000 s old, more than monitors.scan_max_age_s = 0.18 s"
     )
     future = _verdicts(_fine(scan_stamp_s=10.2))["scan_freshness"]
     assert "in the future" in future.reason

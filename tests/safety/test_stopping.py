@@ -15,6 +15,7 @@ import pytest
 import z3
 
 from pipeline.config import default_config, load_config, overridden
+from pipeline.errors import ConfigError
 from properties.smt import exact_value
 from safety.stopping import (
     ClosingClass,
@@ -76,7 +77,7 @@ def test_default_caps_come_from_the_computed_limits() -> None:
         limit = params.tier_limit_mps(tier)
         expected = min(math.floor(limit * 1000) / 1000, params.robot_max_speed_mps)
         assert configured == expected, (tier, limit, configured)
-    assert [round(params.tier_limit_mps(t), 6) for t in Tier] == [0.719831, 1.034398, 0.79698]
+    assert [round(params.tier_limit_mps(t), 6) for t in Tier] == [0.592359, 0.896182, 0.65112]
 
 
 def test_measured_latency_feeds_in_through_the_seam() -> None:
@@ -114,7 +115,7 @@ def test_tiers_by_confidence() -> None:
     assert params.margin_for(0.6, False) == 0.7
     assert params.margin_for(0.2, False) == 1.0  # untrusted class: the most cautious tier
     assert params.margin_for(0.95, True) == 1.0
-    assert params.cap_for(0.95, False) == 0.719
+    assert params.cap_for(0.95, False) == 0.592
     assert list(params.margin_for(np.array([0.9, 0.6, 0.1]), np.array([False, False, False]))) == [
         0.4,
         0.7,
@@ -193,3 +194,19 @@ def test_certify_reports_the_source_tiers_refuted_with_safe_caps(tmp_path: Path)
     assert bundle["provenance"]["stopping.reaction_latency"]["perception_latency_source"] == (
         "source material: 80 ms p99 scan-to-costmap (Intel NUC i5)"
     )
+
+
+@pytest.mark.requirement("SR-STOP-5", kind="example", code=["pipeline/config/__init__.py"])
+def test_the_freshness_monitor_enforces_the_proved_latency() -> None:
+    config = default_config()
+    assert config.monitors.scan_max_age_s <= config.stopping.perception_latency_s == 0.18
+    with pytest.raises(ConfigError) as caught:
+        overridden(config, {"monitors": {"scan_max_age_s": 0.25}})
+    assert caught.value.lines == [
+        "override: monitors.scan_max_age_s (0.25) must not exceed stopping.perception_latency_s "
+        "(0.18): the monitor would pass data older than the stopping proof assumes"
+    ]
+    # The source's 80 ms is valid only with a monitor as strict, and then a 10 Hz scan (first
+    # beam 0.1 s old when the revolution completes) is always stale: the README finding.
+    source = load_config(SOURCE)
+    assert source.monitors.scan_max_age_s == source.stopping.perception_latency_s == 0.08
