@@ -55,7 +55,7 @@ def test_header_records_config_model_and_latency(tmp_path: Path) -> None:
     assert header["config_hash"] == config_hash(CONFIG)
     assert header["config"] == CONFIG.model_dump(mode="json")
     assert header["model_hash"] == "ab" * 32
-    assert header["latency"] == {"perception_latency_s": 0.08, "latency_source": "config"}
+    assert header["latency"] == {"perception_latency_s": 0.18, "latency_source": "config"}
     assert [c["kind"] for c in cycles] == ["cycle"] * 6
     assert close == {**close, "kind": "close", "n_records": 7, "seq": 7}
     for record in (header, *cycles, close):
