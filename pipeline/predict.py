@@ -280,7 +280,10 @@ def predict(
     half = np.where(
         is_mode[PredictionMode.CONE], cone_half + spread[rows], np.where(two_mode, cone_half, np.pi)
     )
-    reach_speed = bound[rows].copy()
+    # The operating domain's speed limit bounds every object, however unsure its filter is
+    # (a new track's velocity variance alone would reach several metres per second); an
+    # unknown track may also be starting a reversal, so it keeps that on top.
+    reach_speed = np.minimum(bound[rows], pc.max_object_speed_mps)
     reach_speed[is_mode[PredictionMode.FOOTPRINT]] = 0.0
     reach_speed[is_mode[PredictionMode.UNKNOWN]] += pc.reversal_speed_mps
     main = sector_points(x, y, heading, half, reach_speed * horizon, arc, sides)

@@ -13,7 +13,9 @@ satisfies the assumptions of :mod:`pipeline.predict` for that track's mode:
   heading at most at the reversal speed;
 * footprint: standing still;
 * unknown: any direction, speed at most the speed bound (and a reversal at most at the
-  reversal speed).
+  reversal speed);
+* never faster than ``predict.max_object_speed_mps`` (the operating domain's limit, which
+  caps every speed bound).
 
 Motions are :class:`pipeline.sim.motion.Motion` profiles integrated by the simulator
 (:func:`pipeline.sim.motion.integrate`), so the true positions are the simulator's.
@@ -151,7 +153,7 @@ def make_case(rng: np.random.Generator, mode: str, config: SafecaseConfig) -> Ca
     if mode in ("stop", "reverse"):
         speed_est = float(rng.uniform(0.0, pc.near_reversal_speed_mps))
     v_est = speed_est * u
-    bound = speed_est + k * sigma_v
+    bound = min(speed_est + k * sigma_v, pc.max_object_speed_mps)
     history = xy[None, :] - u[None, :] * np.linspace(1.5, 0.0, 15)[:, None]  # 1.5 m travelled
     class_name: str | None
     confidence = float(rng.uniform(config.classify.medium_confidence_min, 1.0))
@@ -161,6 +163,9 @@ def make_case(rng: np.random.Generator, mode: str, config: SafecaseConfig) -> Ca
         class_name = "forklift_moving"
         v_true = v_est + _within(rng, k * sigma_v)
         speed0 = float(np.hypot(*v_true))
+        if speed0 > pc.max_object_speed_mps:  # the domain's limit holds for the truth too
+            v_true *= pc.max_object_speed_mps / speed0
+            speed0 = float(np.hypot(*v_true))
         certain = speed_est > k * sigma_v
         spread = math.asin(min(k * sigma_v / speed_est, 1.0)) if certain else math.pi
         half = cone + spread

@@ -1,4 +1,4 @@
-"""The ``safecase`` command line: certify, evidence, config, requirements.
+"""The ``safecase`` command line: run, certify, evidence, config, requirements, audit, sim.
 
 Errors a user can cause (a bad configuration value, an unreadable file) end with one line per
 problem and exit code 2, never a traceback (SR-CFG-1).
@@ -24,6 +24,7 @@ from pipeline.config import SafecaseConfig, config_hash, load_config, to_toml
 from pipeline.errors import ConfigError, SafecaseError
 from pipeline.sim.cli import app as sim_app
 from safety.audit_cli import app as audit_app
+from safety.run_cli import run_command
 
 app = typer.Typer(
     name="safecase",
@@ -39,6 +40,7 @@ app.add_typer(config_app, name="config")
 app.add_typer(sim_app, name="sim")
 app.add_typer(audit_app, name="audit")
 app.command("train")(train_command)
+app.command("run")(run_command)
 
 err = Console(stderr=True, soft_wrap=True)
 out = Console(soft_wrap=True)

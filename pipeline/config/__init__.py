@@ -38,6 +38,7 @@ from pipeline.config.sections_safety import (
     GeometrySection,
     GovernorSection,
     MonitorSection,
+    RuntimeSection,
     StoppingSection,
 )
 from pipeline.config.sections_sim import SimSection
@@ -54,6 +55,7 @@ __all__ = [
     "GovernorSection",
     "MonitorSection",
     "PredictSection",
+    "RuntimeSection",
     "SafecaseConfig",
     "ScanSection",
     "SimSection",
@@ -85,6 +87,7 @@ class SafecaseConfig(Section):
     monitors: MonitorSection = MonitorSection()
     sim: SimSection = SimSection()
     audit: AuditSection = AuditSection()
+    runtime: RuntimeSection = RuntimeSection()
 
     @model_validator(mode="after")
     def _monitor_enforces_the_proved_latency(self) -> SafecaseConfig:
@@ -95,6 +98,19 @@ class SafecaseConfig(Section):
                 f"monitors.scan_max_age_s ({self.monitors.scan_max_age_s}) must not exceed "
                 f"stopping.perception_latency_s ({self.stopping.perception_latency_s}): the "
                 "monitor would pass data older than the stopping proof assumes"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _footprint_holds_the_robot(self) -> SafecaseConfig:
+        # The governor and the planner check the configured footprint; the simulated robot
+        # must fit inside it, or the closed loop would certify a smaller robot than it drives.
+        g, s = self.geometry, self.sim
+        if s.ego_length_m > g.footprint_length_m or s.ego_width_m > g.footprint_width_m:
+            raise ValueError(
+                f"sim.ego_length_m x sim.ego_width_m ({s.ego_length_m} x {s.ego_width_m}) must "
+                f"fit in geometry.footprint_length_m x geometry.footprint_width_m "
+                f"({g.footprint_length_m} x {g.footprint_width_m})"
             )
         return self
 

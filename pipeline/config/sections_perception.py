@@ -156,7 +156,9 @@ class PredictSection(Section):
     are drawn as circumscribed polygons (arc pieces of at most ``arc_step_deg``, discs of
     ``disc_sides`` sides), so the polygons contain the exact regions. A near-reversal track's
     last confirmed heading is the direction of its centroid history when that spans at least
-    ``heading_min_travel_m``. ``step_s`` samples the horizon where a finite set of times is
+    ``heading_min_travel_m``. No object of the operating domain moves faster than
+    ``max_object_speed_mps``: it caps every speed bound (an assumption; the runtime stops when a
+    confirmed track is seen faster). ``step_s`` samples the horizon where a finite set of times is
     needed (evaluation).
     """
 
@@ -164,6 +166,7 @@ class PredictSection(Section):
     step_s: float = Field(0.1, gt=0.0, le=1.0)
     cone_half_angle_deg: float = Field(15.0, ge=0.0, le=90.0)
     reversal_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
+    max_object_speed_mps: float = Field(2.0, gt=0.0, le=20.0)
     near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
     near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
     velocity_sigmas: float = Field(2.0, ge=0.0, le=10.0)

@@ -81,8 +81,8 @@ class GeometrySection(Section):
     n_speeds: int = Field(7, ge=1, le=100)
     n_yaw_rates: int = Field(25, ge=1, le=1000)
     max_yaw_rate_radps: float = Field(1.0, ge=0.0, le=10.0)
-    footprint_length_m: float = Field(0.7, gt=0.0, le=20.0)
-    footprint_width_m: float = Field(0.5, gt=0.0, le=20.0)
+    footprint_length_m: float = Field(0.9, gt=0.0, le=20.0)
+    footprint_width_m: float = Field(0.6, gt=0.0, le=20.0)
     max_obstacles: int = Field(64, ge=1, le=10_000)
 
     @model_validator(mode="after")
@@ -151,3 +151,27 @@ class AuditSection(Section):
     fsync_every_records: int = Field(10, ge=1, le=1_000_000)
     sign_head: bool = False
     signing_key: str = Field("", description="Ed25519 PEM key; empty: the evidence key")
+
+
+class RuntimeSection(Section):
+    """The cycle loop (SR-RUN-*): path clearance, optional planner and costmap stages.
+
+    The governor's free distances are measured along the robot's path ahead, sampled every
+    ``path_step_m`` up to ``path_lookahead_m`` (:mod:`safety.path`); the lookahead should cover
+    the stopping distance at the robot's maximum speed against the fastest closing class, or the
+    governor holds the robot below that speed. Thermal-only pedestrians are discs of
+    ``person_radius_m``. Scan points outside every kept cluster count as static structure of
+    unknown class (``loose_points``: ``"static"``, closing speed ``stopping.static_speed_mps``)
+    or as the fastest class (``"worst"``). ``planner_check`` and ``costmap`` run the swept-path
+    check of the candidate grid and the costmap every cycle (recorded, for a planner; the
+    candidate grid costs 10-30 ms here, so it is off by default). In closed-loop simulation
+    every cycle takes ``sim_cycle_s`` on the simulated clock.
+    """
+
+    path_lookahead_m: float = Field(6.0, gt=0.0, le=100.0)
+    path_step_m: float = Field(0.05, gt=0.0, le=1.0)
+    person_radius_m: float = Field(0.3, gt=0.0, le=2.0)
+    loose_points: Literal["static", "worst"] = "static"
+    planner_check: bool = False
+    costmap: bool = True
+    sim_cycle_s: float = Field(0.05, ge=0.0, le=1.0)
