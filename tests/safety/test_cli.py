@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import base64
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,44 +12,30 @@ from rich.console import Console
 
 from evidence.manifest import SIGNATURE, write_manifest
 from evidence.run import run_certification
-
-SAFECASE = [sys.executable, "-m", "safety"]
-
-
-def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="200")
-    return subprocess.run(
-        [*SAFECASE, *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=cwd,
-        timeout=120,
-        check=False,
-    )
+from properties.cli_runner import run_safecase
 
 
 @pytest.mark.requirement("SR-CFG-1", kind="example")
 def test_invalid_config_exits_2_with_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text("[cluster]\neps_m = -0.15\n")
-    done = _run("config", "check", str(bad))
+    done = run_safecase("config", "check", str(bad))
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert lines == [
         f"config error: {bad}: cluster.eps_m = -0.15: Input should be greater than 0; "
         "allowed: a number > 0.0 and <= 2.0"
     ]
-    done = _run("certify", "--config", str(bad))
+    done = run_safecase("certify", "--config", str(bad))
     assert done.returncode == 2
     assert "cluster.eps_m = -0.15" in done.stderr
 
 
 def test_config_show_round_trips(tmp_path: Path) -> None:
-    shown = _run("config", "show")
+    shown = run_safecase("config", "show")
     assert shown.returncode == 0
     (tmp_path / "c.toml").write_text(shown.stdout)
-    checked = _run("config", "check", str(tmp_path / "c.toml"))
+    checked = run_safecase("config", "check", str(tmp_path / "c.toml"))
     assert checked.returncode == 0
     assert shown.stdout.splitlines()[0].split()[-1] in checked.stdout
 
@@ -64,12 +48,12 @@ def test_evidence_verify_names_changes_and_wrong_signatures(tmp_path: Path) -> N
     (bundle / "report.html").write_text("<html></html>\n")
     key = Ed25519PrivateKey.from_private_bytes(bytes(range(32)))
     write_manifest(bundle, {"config_hash": "x"}, key)
-    ok = _run("evidence", "verify", str(bundle))
+    ok = run_safecase("evidence", "verify", str(bundle))
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert ok.stdout.startswith("OK: 2 files match")
 
     (bundle / "report.html").write_text("<html>changed</html>\n")
-    bad = _run("evidence", "verify", str(bundle))
+    bad = run_safecase("evidence", "verify", str(bundle))
     assert bad.returncode == 1
     assert "FAIL changed: report.html" in bad.stdout
 
@@ -77,16 +61,16 @@ def test_evidence_verify_names_changes_and_wrong_signatures(tmp_path: Path) -> N
     other = Ed25519PrivateKey.from_private_bytes(bytes(range(1, 33)))
     manifest = (bundle / "manifest.json").read_bytes()
     (bundle / SIGNATURE).write_bytes(base64.b64encode(other.sign(manifest)))
-    bad = _run("evidence", "verify", str(bundle))
+    bad = run_safecase("evidence", "verify", str(bundle))
     assert bad.returncode == 1
     assert "signature does not match" in bad.stdout
 
 
 def test_version_and_help() -> None:
-    done = _run("--version")
+    done = run_safecase("--version")
     assert done.returncode == 0
     assert done.stdout.startswith("safecase ")
-    helped = _run("--help")
+    helped = run_safecase("--help")
     assert "certify" in helped.stdout
     assert "evidence" in helped.stdout
 
@@ -119,5 +103,5 @@ def test_run_certification_writes_a_signed_bundle(tmp_path: Path) -> None:
     assert result.exit_code == 1
     assert "SR-EVD-1" in result.bundle.summary["blocking_requirements"]
     assert (tmp_path / "bundle" / "manifest.json").is_file()
-    verified = _run("evidence", "verify", str(tmp_path / "bundle"))
+    verified = run_safecase("evidence", "verify", str(tmp_path / "bundle"))
     assert verified.returncode == 0, verified.stdout

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,7 +12,6 @@ import pytest
 from pipeline.config import default_config
 from pipeline.sim.scenarios import make_simulation
 from pipeline.types import Action, Command, DriverState
-from properties.partial_runtime import PartialCycle
 from safety.audit import AuditWriter
 from safety.decision import GovernorInputs, decide
 from safety.governor import Governor
@@ -23,6 +23,7 @@ from safety.monitors import (
     run_monitors,
 )
 from safety.replay import replay
+from safety.runtime import CycleInput, Runtime
 
 MONITORS = ["safety/monitors.py"]
 CONFIG = default_config()
@@ -185,7 +186,7 @@ def test_decide_runs_governor_and_monitors() -> None:
 
 
 @pytest.mark.requirement("SR-FUS-2", kind="example", code=[*MONITORS, "safety/decision.py"])
-def test_stale_scan_failed_stage_and_clock_jump_in_the_partial_runtime(tmp_path: Path) -> None:
+def test_stale_scan_failed_stage_and_clock_jump_in_the_runtime(tmp_path: Path) -> None:
     sim = make_simulation(CONFIG, "pallet_jack_slow", seed=1, duration_s=1.0)
     scans = list(sim.scans())
     log = tmp_path / "cycles.log"
@@ -195,11 +196,15 @@ def test_stale_scan_failed_stage_and_clock_jump_in_the_partial_runtime(tmp_path:
             raise RuntimeError("tracker exploded")
 
     with AuditWriter(log, CONFIG, model_hash=None) as writer:
-        cycle = PartialCycle(CONFIG, writer=writer)
-        fine = cycle.step(scans[0], scans[0].stamp_s + 0.1)
-        stale = cycle.step(scans[1], scans[1].stamp_s + 0.5)
-        failed = cycle.step(scans[2], scans[2].stamp_s + 0.1, fault=fail_tracking)
-        jumped = cycle.step(scans[3], scans[0].stamp_s)
+        cycle = Runtime(CONFIG, writer=writer)
+
+        def at(i: int, now_s: float, **extra: Any) -> CycleInput:
+            return CycleInput.standing(scans[i], now_s, CONFIG, charge_s=0.02, **extra)
+
+        fine = cycle.step(at(0, scans[0].stamp_s + 0.1))
+        stale = cycle.step(at(1, scans[1].stamp_s + 0.5))
+        failed = cycle.step(at(2, scans[2].stamp_s + 0.1, fault=fail_tracking))
+        jumped = cycle.step(at(3, scans[0].stamp_s))
     assert not any("stale" in r for r in fine.command.reasons)
     assert stale.command.action is Action.STOP
     assert any(r.startswith("scan_freshness: stale scan") for r in stale.command.reasons)

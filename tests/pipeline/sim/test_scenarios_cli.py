@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,21 +12,7 @@ from pipeline.sim.dataset import DATASET_VERSION, DatasetError, load_dataset, wr
 from pipeline.sim.objects import ObjectKind
 from pipeline.sim.scenarios import SCENARIOS, ScenarioError, build_scenario, make_simulation
 from pipeline.sim.truth import CLASS_NAMES, ObjectClass
-
-SAFECASE = [sys.executable, "-m", "safety"]
-
-
-def _safecase(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="200")
-    return subprocess.run(
-        [*SAFECASE, *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=cwd,
-        timeout=300,
-        check=False,
-    )
+from properties.cli_runner import run_safecase
 
 
 def test_the_issue_s_scenarios_and_models_are_all_there() -> None:
@@ -112,13 +95,13 @@ def test_dataset_round_trip(tmp_path: Path) -> None:
 
 
 def test_cli_list_show_and_dataset(tmp_path: Path) -> None:
-    listed = _safecase("sim", "list", cwd=tmp_path)
+    listed = run_safecase("sim", "list", cwd=tmp_path)
     assert listed.returncode == 0, listed.stderr
     assert "dolly_train_turn" in listed.stdout
     png = tmp_path / "rev.png"
     cfg = tmp_path / "fast.toml"
     cfg.write_text("[sim]\nbeams = 180\n")
-    shown = _safecase(
+    shown = run_safecase(
         "sim",
         "show",
         "reversing_forklift_aisle",
@@ -136,7 +119,7 @@ def test_cli_list_show_and_dataset(tmp_path: Path) -> None:
     outs = []
     for k in range(2):  # two processes, same seed: the same data bit for bit
         out = tmp_path / f"d{k}.npz"
-        done = _safecase(
+        done = run_safecase(
             "sim",
             "dataset",
             "--scenarios",
@@ -160,16 +143,16 @@ def test_cli_list_show_and_dataset(tmp_path: Path) -> None:
 
 
 def test_cli_rejects_bad_input_with_exit_2(tmp_path: Path) -> None:
-    unknown = _safecase("sim", "show", "nope", cwd=tmp_path)
+    unknown = run_safecase("sim", "show", "nope", cwd=tmp_path)
     assert unknown.returncode == 2
     assert "unknown scenario(s) nope" in unknown.stderr
     bad_cfg = tmp_path / "bad.toml"
     bad_cfg.write_text("[sim]\nmax_range_m = -1.0\n")
-    rejected = _safecase(
+    rejected = run_safecase(
         "sim", "dataset", "--out", str(tmp_path / "x.npz"), "--config", str(bad_cfg), cwd=tmp_path
     )
     assert rejected.returncode == 2
     assert "sim.max_range_m" in rejected.stderr
-    neg = _safecase("sim", "show", "pallet_jack_slow", "--duration", "-1", cwd=tmp_path)
+    neg = run_safecase("sim", "show", "pallet_jack_slow", "--duration", "-1", cwd=tmp_path)
     assert neg.returncode == 2
     assert "--duration" in neg.stderr
