@@ -27,7 +27,7 @@ from pipeline.drivers import Driver
 from pipeline.sim.scenarios import make_simulation
 from pipeline.sim.simulation import SimResult, Simulation
 from pipeline.types import DriverState, FloatArray
-from safety.audit import AuditWriter
+from safety.audit import AuditWriter, BackgroundAuditWriter
 from safety.path import PathAhead
 from safety.runtime import CycleInput, CycleOutput, Runtime
 from safety.stopping import StoppingParams
@@ -181,29 +181,45 @@ def run_device(
     driver has given up (FAILED).
     """
     now = clock or time.monotonic
-    period = config.track.frame_period_s
     params = StoppingParams.from_config(config)
     rt = Runtime(config, params=params)
     driver_config = config.driver.model_copy(update={"port_url": url})
-    n = 0
     with (
         AuditWriter(
             audit_path, config, model_hash=rt.classifier.model_sha256, params=params
         ) as writer,
         Driver(driver_config, clock=now) as driver,
     ):
-        rt.writer = writer
-        last = now()
-        while max_scans is None or n < max_scans:
-            scans = driver.poll(period)
-            t = now()
-            if not scans and t - last < period:
-                time.sleep(min(period - (t - last), 0.01))
-                continue
-            last = t
-            scan = scans[-1] if scans else None
-            health = driver.health(t)
-            yield rt.step(CycleInput.standing(scan, t, config, driver=health))
-            n += scan is not None
-            if health.state is DriverState.FAILED:
-                return
+        # fsync stalls of 15-100 ms here: the log is written off the cycle's thread.
+        background = BackgroundAuditWriter(writer)
+        rt.writer = background
+        try:
+            yield from _device_cycles(rt, driver, config, now, max_scans)
+        finally:
+            background.close()
+
+
+def _device_cycles(
+    rt: Runtime,
+    driver: Driver,
+    config: SafecaseConfig,
+    now: Callable[[], float],
+    max_scans: int | None,
+) -> Iterator[CycleOutput]:
+    """The device loop of :func:`run_device`."""
+    period = config.track.frame_period_s
+    n = 0
+    last = now()
+    while max_scans is None or n < max_scans:
+        scans = driver.poll(period)
+        t = now()
+        if not scans and t - last < period:
+            time.sleep(min(period - (t - last), 0.01))
+            continue
+        last = t
+        scan = scans[-1] if scans else None
+        health = driver.health(t)
+        yield rt.step(CycleInput.standing(scan, t, config, driver=health))
+        n += scan is not None
+        if health.state is DriverState.FAILED:
+            return

@@ -46,6 +46,7 @@ from pipeline.points import scan_to_points
 from pipeline.predict import largest_std, predict
 from pipeline.track.tracker import Tracker
 from pipeline.types import (
+    Action,
     BoolArray,
     Clusters,
     Command,
@@ -263,11 +264,16 @@ class Runtime:
             if math.isfinite(stamp):
                 self.previous_scan_stamp_s = max(stamp, self.previous_scan_stamp_s or -math.inf)
         record = CycleRecord(observation, decision, inputs, summarize(**parts), wall)
+        command = decision.command
         if self.writer is not None:
-            self.writer.append(record)
+            try:
+                self.writer.append(record)
+            except Exception as exc:  # a decision that cannot be recorded is not acted on
+                why = f"audit: the cycle could not be recorded ({type(exc).__name__}: {exc})"
+                command = Command(Action.STOP, 0.0, command.stamp_s, (why,))
         self.cycles += 1
         return CycleOutput(
-            decision.command, decision, record, wall, cpu, state["envelopes"], state["distances"]
+            command, decision, record, wall, cpu, state["envelopes"], state["distances"]
         )
 
     def _perceive(

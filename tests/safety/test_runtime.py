@@ -113,3 +113,19 @@ def test_safecase_run_refuses_bad_options(tmp_path: Path) -> None:
     done = run_safecase("run", "--emulate", "sick", cwd=tmp_path)
     assert done.returncode == 2
     assert "allowed: rplidar, scip" in done.stderr
+
+
+class _FullDisk:
+    """An audit writer whose disk is full."""
+
+    def append(self, record: object) -> None:
+        raise OSError(28, "No space left on device")
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=["safety/runtime.py"])
+def test_a_cycle_that_cannot_be_recorded_is_not_acted_on(classifier: Classifier) -> None:
+    rt = Runtime(CONFIG, classifier=classifier, writer=_FullDisk())  # type: ignore[arg-type]
+    out = rt.step(CycleInput.standing(_empty_scan(), 10.1, CONFIG, charge_s=0.01))
+    assert out.decision.command.action is Action.PROCEED  # what would have been commanded
+    assert out.command.action is Action.STOP
+    assert out.command.reasons[0].startswith("audit: the cycle could not be recorded (OSError")
