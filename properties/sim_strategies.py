@@ -23,20 +23,29 @@ NAMED = tuple(name for name in SCENARIOS if name != "random_encounter")
 
 @dataclass(frozen=True)
 class RandomScene:
-    """A world of random static polygons and parked objects, and a scanner pose outside all."""
+    """A world of random static polygons and parked objects, and a scanner pose outside all
+    (and off their boundaries)."""
 
     world: World
     pose: tuple[float, float, float]
 
 
-def _inside(point: FloatArray, polygon: FloatArray) -> bool:
+def _inside(point: FloatArray, polygon: FloatArray, clearance_m: float = 1e-6) -> bool:
+    """Whether ``point`` is inside ``polygon`` or within ``clearance_m`` of its boundary (a
+    scanner sits in free space, never on a surface, where a ray's first hit is ambiguous)."""
     x, y = point
     px, py = polygon[:, 0], polygon[:, 1]
     qx, qy = np.roll(px, -1), np.roll(py, -1)
     straddle = (py > y) != (qy > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = px + (y - py) * (qx - px) / (qy - py)
-    return bool(np.count_nonzero(straddle & (x < xc)) % 2)
+    if np.count_nonzero(straddle & (x < xc)) % 2:
+        return True
+    ex, ey = qx - px, qy - py
+    length2 = np.maximum(ex * ex + ey * ey, 1e-300)
+    t = np.clip(((x - px) * ex + (y - py) * ey) / length2, 0.0, 1.0)
+    gap = np.hypot(px + t * ex - x, py + t * ey - y)
+    return bool(gap.min() <= clearance_m)
 
 
 @st.composite
