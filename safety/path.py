@@ -27,9 +27,9 @@ from pipeline.config import GeometrySection
 from pipeline.predict import disc_points
 from pipeline.types import BoolArray, ConvexPolygons, FloatArray, frozen_array
 from safety.contact import contact_pairs
-from safety.geometry import GeometryError, NonFiniteGeometryError, convex_polygons
+from safety.geometry import GeometryError, NonFiniteGeometryError, U, convex_polygons
 from safety.sat import SatChecker
-from safety.swept import Trajectories, rectangle_footprint, segment_hulls
+from safety.swept import rectangle_footprint
 
 __all__ = ["PathAhead", "PathClearance", "PathDistances"]
 
@@ -163,24 +163,34 @@ class PathClearance:
         self.tolerance_m = float(geometry.contact_tolerance_m)
 
     def pieces(self, path: PathAhead) -> ConvexPolygons:
-        """One convex polygon per piece between consecutive samples (module docstring)."""
-        traj = Trajectories(
-            x_m=path.x_m[:, None],
-            y_m=path.y_m[:, None],
-            theta_rad=path.theta_rad[:, None],
-            step_s=1.0,
+        """One convex polygon per piece between consecutive samples (module docstring).
+
+        A straight piece is the footprint stretched along its heading to the next sample (the
+        exact hull of the two placed rectangles, built directly: no hull computation); a
+        corner piece is the pivot disc's circumscribed polygon. ``slack_m`` covers the
+        rounding of these vertices (a few ulp of the largest coordinate).
+        """
+        n = path.arc_m.shape[0] - 1
+        x0, y0, th = path.x_m[:-1], path.y_m[:-1], path.theta_rad[:-1]
+        c, s = np.cos(th), np.sin(th)
+        hl, hw = 0.5 * self.length_m, 0.5 * self.width_m
+        # Rear right, front right, front left, rear left: counter-clockwise.
+        along = np.stack(
+            [-hl + 0 * x0, hl + np.diff(path.arc_m), hl + np.diff(path.arc_m), -hl + 0 * x0]
         )
-        hulls = segment_hulls(self.footprint, traj, np.array([0]))
+        across = np.array([-hw, -hw, hw, hw])[:, None]
+        verts = np.empty((2, _DISC_SIDES, n))
+        verts[0, :4] = x0 + c * along - s * across
+        verts[1, :4] = y0 + s * along + c * across
+        verts[:, 4:] = verts[:, :1]
+        counts = np.full(n, 4, dtype=np.int64)
         corner = self._corners(path)
-        if not corner.any():
-            return hulls
-        verts = hulls.vertices_m  # (2, K, N) vertex-major, padded by repeating vertex 0
-        lists = [verts[:, : hulls.counts[i], i].T for i in range(hulls.n)]
-        radius = self._pivot_radii(path)
-        discs = disc_points(path.x_m[:-1], path.y_m[:-1], radius, _DISC_SIDES)
-        for i in np.flatnonzero(corner):
-            lists[i] = discs[i]
-        return convex_polygons(lists)
+        if corner.any():
+            disc = disc_points(x0[corner], y0[corner], self._pivot_radii(path)[corner], _DISC_SIDES)
+            verts[:, :, corner] = disc.transpose(2, 1, 0)
+            counts[corner] = _DISC_SIDES
+        magnitude = np.abs(verts).max(axis=(0, 1)) if n else np.zeros(0)
+        return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=16.0 * U * (1.0 + magnitude))
 
     def _corners(self, path: PathAhead) -> BoolArray:
         turn = np.abs(np.angle(np.exp(1j * np.diff(path.theta_rad))))
@@ -204,13 +214,25 @@ class PathClearance:
         lookahead = path.length_m
         zone_free = np.full(zones.n, lookahead)
         zone_hit: BoolArray = np.zeros(zones.n, dtype=bool)
+        pieces = self.pieces(path)
         if zones.n:
-            hits = self.sat.overlap_all(self.pieces(path), zones)  # (S - 1, Z)
+            hits = self.sat.overlap_all(pieces, zones)  # (S - 1, Z)
             zone_hit = np.asarray(hits.any(axis=0), dtype=bool)
             zone_free[zone_hit] = arc[hits.argmax(axis=0)[zone_hit]]
         point_free, on_path = lookahead, 0
         px = np.asarray(points_x_m, dtype=np.float64)
         py = np.asarray(points_y_m, dtype=np.float64)
+        if px.size:
+            # Only points in the pieces' bounding box can lie on the path (most of a scan).
+            v = pieces.vertices_m
+            pad = 2.0 * self.tolerance_m
+            near = (
+                (px >= v[0].min() - pad)
+                & (px <= v[0].max() + pad)
+                & (py >= v[1].min() - pad)
+                & (py <= v[1].max() + pad)
+            )
+            px, py = px[near], py[near]
         if px.size:
             hit = self._points_on_pieces(path, px, py)  # (S - 1, P)
             on = hit.any(axis=0)

@@ -54,6 +54,7 @@ from pipeline.types import (
     DriverHealth,
     Envelopes,
     FloatArray,
+    IntArray,
     PredictionMode,
     Predictions,
     RadarDetections,
@@ -155,6 +156,23 @@ def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
         return b
     lists = [a.vertex_list(i) for i in range(a.n)] + [b.vertex_list(i) for i in range(b.n)]
     return convex_polygons(lists)
+
+
+def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> ConvexPolygons:
+    """``base`` with polygons ``idx`` replaced by those of ``other`` (in order)."""
+    k = max(base.k, other.k)
+
+    def padded(p: ConvexPolygons) -> FloatArray:
+        out = np.empty((2, k, p.n))
+        out[:, : p.k] = p.vertices_m
+        out[:, p.k :] = p.vertices_m[:, :1]
+        return out
+
+    verts = padded(base)
+    verts[:, :, idx] = padded(other)
+    counts, slack = base.counts.copy(), base.slack_m.copy()
+    counts[idx], slack[idx] = other.counts, other.slack_m
+    return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)
 
 
 def thermal_in_frame(thermal: ThermalDetections, pose: Pose) -> ThermalDetections:
@@ -393,16 +411,18 @@ class Runtime:
         still = (pred.mode == int(PredictionMode.FOOTPRINT)) & (det >= 0) & (det < clusters.n)
         if not still.any():
             return zones
-        lists = [zones.vertex_list(i) for i in range(zones.n)]
-        sigma = self.config.predict.velocity_sigmas * largest_std(tracks.covariance[row, :2, :2])
-        off = clusters.hull_offsets
+        idx = np.flatnonzero(still)
+        sigma = self.config.predict.velocity_sigmas * largest_std(
+            tracks.covariance[row[idx], :2, :2]
+        )
+        k = det[idx]
+        start, size = clusters.hull_offsets[k], np.diff(clusters.hull_offsets)[k]
+        # Each hull padded by repeating its last vertex (a zero-length edge).
+        pick = start[:, None] + np.minimum(np.arange(size.max())[None, :], size[:, None] - 1)
+        hx, hy = clusters.hull_x_m[pick], clusters.hull_y_m[pick]
         c, s = math.cos(pose[2]), math.sin(pose[2])
-        for i in np.flatnonzero(still):
-            k = int(det[i])
-            hx, hy = clusters.hull_x_m[off[k] : off[k + 1]], clusters.hull_y_m[off[k] : off[k + 1]]
-            hull = np.stack([pose[0] + c * hx - s * hy, pose[1] + s * hx + c * hy], axis=1)
-            lists[i] = grown_polygons(hull[None], sigma[i : i + 1], sides).vertex_list(0)
-        return convex_polygons(lists)
+        hull = np.stack([pose[0] + c * hx - s * hy, pose[1] + s * hx + c * hy], axis=2)
+        return with_columns(zones, idx, grown_polygons(hull, sigma, sides))
 
     def _loose_points(
         self, x_m: FloatArray, y_m: FloatArray, pose: tuple[float, ...]
