@@ -34,7 +34,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from pipeline.classify import Classifier
 from pipeline.cluster import cluster_points
@@ -43,32 +42,34 @@ from pipeline.errors import SafecaseError
 from pipeline.features import detections_in_frame, track_features
 from pipeline.fusion import fuse
 from pipeline.points import scan_to_points
-from pipeline.predict import largest_std, predict
+from pipeline.predict import predict
 from pipeline.track.tracker import Tracker
 from pipeline.types import (
     Action,
-    BoolArray,
-    Clusters,
     Command,
-    ConvexPolygons,
     DriverHealth,
     Envelopes,
-    FloatArray,
-    IntArray,
     PredictionMode,
-    Predictions,
     RadarDetections,
     Scan,
     ThermalDetections,
-    Tracks,
 )
 from safety.audit import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
 from safety.costmap import CostmapBuilder
 from safety.decision import Decision, GovernorInputs, decide
-from safety.envelope import EnvelopeBuilder, grown_polygons
-from safety.geometry import convex_polygons, transform_polygons
+from safety.envelope import EnvelopeBuilder
 from safety.governor import Governor
 from safety.monitors import Observation, Verdict
+from safety.obstacles import (
+    bodies_now,
+    faster_than_the_domain,
+    governor_rows,
+    pedestrian_regions,
+    points_in_frame,
+    stack_polygons,
+    still_zones,
+    thermal_in_frame,
+)
 from safety.path import PathAhead, PathClearance, PathDistances
 from safety.stopping import StoppingParams
 from safety.swept import SweptPathChecker
@@ -148,47 +149,6 @@ class CycleOutput:
     distances: PathDistances | None
 
 
-def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
-    """The polygons of ``a`` followed by those of ``b``."""
-    if b.n == 0:
-        return a
-    if a.n == 0:
-        return b
-    lists = [a.vertex_list(i) for i in range(a.n)] + [b.vertex_list(i) for i in range(b.n)]
-    return convex_polygons(lists)
-
-
-def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> ConvexPolygons:
-    """``base`` with polygons ``idx`` replaced by those of ``other`` (in order)."""
-    k = max(base.k, other.k)
-
-    def padded(p: ConvexPolygons) -> FloatArray:
-        out = np.empty((2, k, p.n))
-        out[:, : p.k] = p.vertices_m
-        out[:, p.k :] = p.vertices_m[:, :1]
-        return out
-
-    verts = padded(base)
-    verts[:, :, idx] = padded(other)
-    counts, slack = base.counts.copy(), base.slack_m.copy()
-    counts[idx], slack[idx] = other.counts, other.slack_m
-    return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)
-
-
-def thermal_in_frame(thermal: ThermalDetections, pose: Pose) -> ThermalDetections:
-    """Thermal detections moved from the robot frame at ``pose`` into the tracking frame."""
-    x0, y0, yaw = pose
-    if (x0, y0, yaw) == (0.0, 0.0, 0.0):
-        return thermal
-    c, s = math.cos(yaw), math.sin(yaw)
-    return ThermalDetections(
-        stamp_s=thermal.stamp_s,
-        x_m=x0 + c * thermal.x_m - s * thermal.y_m,
-        y_m=y0 + s * thermal.x_m + c * thermal.y_m,
-        confidence=thermal.confidence,
-    )
-
-
 class Runtime:
     """The cycle loop's state for one configuration: tracker, classifier, checkers, writer.
 
@@ -226,7 +186,12 @@ class Runtime:
         parts: dict[str, Any] = {"scan": inp.scan}
         over_cap: list[tuple[str, int]] = []
         stage_verdicts: list[Verdict] = []
-        state: dict[str, Any] = {"stage": STAGES[0], "envelopes": None, "distances": None}
+        state: dict[str, Any] = {
+            "stage": STAGES[0],
+            "envelopes": None,
+            "distances": None,
+            "verdicts": stage_verdicts,
+        }
         cpu0 = time.thread_time_ns()
         start = time.perf_counter_ns()
         clock = [start]
@@ -348,20 +313,25 @@ class Runtime:
         enter("predict")
         boosted = replace(classification, confidence=fused.confidence)
         pred = predict(fused.tracks, features, boosted, config)
+        too_fast = faster_than_the_domain(fused.tracks, config.predict)
+        if too_fast is not None:
+            state["verdicts"].append(too_fast)
         enter("envelopes")
         names = self.classifier.class_names
         robot_now = (float(inp.path.x_m[0]), float(inp.path.y_m[0]), float(inp.path.theta_rad[0]))
         env = self.envelopes.build(pred, names, robot_pose=robot_now)
-        ped_zones, ped_env = self._pedestrians(inp.now_s + elapsed_s(), fused, robot_now)
+        ped_zones, ped_env = pedestrian_regions(
+            inp.now_s + elapsed_s(), fused, robot_now, config, self.params, self.envelopes
+        )
         state["envelopes"] = env
         enter("path")
-        zones = self._zones(pred, fused.tracks, clusters, pose)
+        zones = still_zones(pred, fused.tracks, clusters, pose, config.predict)
         loose = clusters.point_labels < 0
         dist = self.clearance.free_distances(
-            inp.path, zones, *self._loose_points(points.x_m[loose], points.y_m[loose], pose)
+            inp.path, zones, *points_in_frame(points.x_m[loose], points.y_m[loose], pose)
         )
         unknown = pred.mode == int(PredictionMode.UNKNOWN)
-        here = self._bodies_now(pred, fused.tracks, unknown)
+        here = bodies_now(pred, fused.tracks, unknown, config.predict.disc_sides)
         free = dist.zone_free_m.copy()
         free[unknown] = self.clearance.distances_now(inp.path, here)
         ped_free = self.clearance.distances_now(inp.path, ped_zones)
@@ -396,108 +366,6 @@ class Runtime:
                 "occupied_cells": int(np.count_nonzero(grid.occupied)),
                 "clipped": grid.n_clipped,
             }
-        return self._governor_inputs(inp.now_s, env, fused, free, ped_free, dist)
-
-    def _zones(
-        self, pred: Predictions, tracks: Tracks, clusters: Clusters, pose: tuple[float, ...]
-    ) -> ConvexPolygons:
-        """Predicted zones (no margin), tracking frame: each row's reach region grown by its
-        body disc; a still object (footprint mode) seen this cycle is its cluster's convex hull
-        grown by its position uncertainty instead (a rack bay's disc would cover the aisle)."""
-        sides = self.config.predict.disc_sides
-        zones = grown_polygons(pred.reach_xy_m, pred.body_radius_m, sides)
-        row = np.searchsorted(tracks.track_id, pred.track_id)
-        det = tracks.detection_index[row]
-        still = (pred.mode == int(PredictionMode.FOOTPRINT)) & (det >= 0) & (det < clusters.n)
-        if not still.any():
-            return zones
-        idx = np.flatnonzero(still)
-        sigma = self.config.predict.velocity_sigmas * largest_std(
-            tracks.covariance[row[idx], :2, :2]
-        )
-        k = det[idx]
-        start, size = clusters.hull_offsets[k], np.diff(clusters.hull_offsets)[k]
-        # Each hull padded by repeating its last vertex (a zero-length edge).
-        pick = start[:, None] + np.minimum(np.arange(size.max())[None, :], size[:, None] - 1)
-        hx, hy = clusters.hull_x_m[pick], clusters.hull_y_m[pick]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        hull = np.stack([pose[0] + c * hx - s * hy, pose[1] + s * hx + c * hy], axis=2)
-        return with_columns(zones, idx, grown_polygons(hull, sigma, sides))
-
-    def _loose_points(
-        self, x_m: FloatArray, y_m: FloatArray, pose: tuple[float, ...]
-    ) -> tuple[FloatArray, FloatArray]:
-        """Robot-frame points at the scan's pose moved into the tracking frame."""
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        return pose[0] + c * x_m - s * y_m, pose[1] + s * x_m + c * y_m
-
-    def _pedestrians(
-        self, now_s: float, fused: Any, robot_now: Pose
-    ) -> tuple[ConvexPolygons, ConvexPolygons]:
-        """Thermal-only pedestrians: bodies now (tracking frame; a disc grown by the walking
-        speed over the detection's age) and envelopes over the horizon (robot frame)."""
-        n = fused.n_pedestrians
-        if n == 0:
-            empty = convex_polygons(np.zeros((0, 3, 2)))
-            return empty, empty
-        p = self.params
-        age = np.maximum(now_s - fused.pedestrian_stamp_s, 0.0)
-        walk = float(p.person_speed_mps)
-        radius = self.config.runtime.person_radius_m + walk * age
-        centre = np.stack([fused.pedestrian_x_m, fused.pedestrian_y_m], axis=1)[:, None, :]
-        sides = self.config.predict.disc_sides
-        zones = grown_polygons(centre, radius, sides)
-        margin, _ = self.envelopes.margins(fused.pedestrian_confidence, np.zeros(n, dtype=bool))
-        reach = radius + walk * self.config.predict.horizon_s + margin
-        env = grown_polygons(centre, reach, sides)
-        x, y, yaw = robot_now
-        c, s = math.cos(-yaw), math.sin(-yaw)
-        env = transform_polygons(env, -(c * x - s * y), -(s * x + c * y), -yaw)
-        return zones, env
-
-    def _bodies_now(self, pred: Predictions, tracks: Tracks, rows: BoolArray) -> ConvexPolygons:
-        """Body discs of prediction ``rows`` at the tracks' current positions."""
-        row = np.searchsorted(tracks.track_id, pred.track_id[rows])
-        centre = tracks.state[row, None, :2]
-        return grown_polygons(centre, pred.body_radius_m[rows], self.config.predict.disc_sides)
-
-    def _governor_inputs(
-        self,
-        now_s: float,
-        env: Envelopes,
-        fused: Any,
-        free_m: FloatArray,
-        ped_free_m: FloatArray,
-        dist: PathDistances,
-    ) -> GovernorInputs:
-        """One governor row per prediction row, pedestrian, loose point and the path's end."""
-        p = self.params
-        worst = float(p.worst_closing_speed_mps)
-        loose_closing = (
-            float(p.static_speed_mps) if self.config.runtime.loose_points == "static" else worst
-        )
-        n_ped = fused.n_pedestrians
-        # (free distance, closing speed, confidence, near-reversal) per group of rows
-        groups: list[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]] = [
-            (free_m, env.closing_speed_mps, env.confidence, env.near_reversal),
-            (
-                ped_free_m,
-                np.full(n_ped, float(p.person_speed_mps)),
-                fused.pedestrian_confidence,
-                np.zeros(n_ped, dtype=bool),
-            ),
-            ([dist.lookahead_m], [worst], [0.0], [False]),
-        ]
-        if dist.n_points_on_path:
-            groups.append(([dist.point_free_m], [loose_closing], [0.0], [False]))
-
-        def column(k: int, dtype: type) -> npt.NDArray[Any]:
-            return np.concatenate([np.asarray(g[k], dtype=dtype) for g in groups])
-
-        return GovernorInputs(
-            now_s,
-            column(0, np.float64),
-            column(1, np.float64),
-            np.clip(column(2, np.float64), 0.0, 1.0),
-            column(3, np.bool_),
+        return governor_rows(
+            inp.now_s, env, fused, free, ped_free, dist, self.params, config.runtime.loose_points
         )

@@ -166,7 +166,7 @@ class PredictSection(Section):
     step_s: float = Field(0.1, gt=0.0, le=1.0)
     cone_half_angle_deg: float = Field(15.0, ge=0.0, le=90.0)
     reversal_speed_mps: float = Field(0.6, ge=0.0, le=10.0)
-    max_object_speed_mps: float = Field(2.0, gt=0.0, le=20.0)
+    max_object_speed_mps: float = Field(3.5, gt=0.0, le=20.0)
     near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
     near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
     velocity_sigmas: float = Field(2.0, ge=0.0, le=10.0)

@@ -129,3 +129,22 @@ def test_a_cycle_that_cannot_be_recorded_is_not_acted_on(classifier: Classifier)
     assert out.decision.command.action is Action.PROCEED  # what would have been commanded
     assert out.command.action is Action.STOP
     assert out.command.reasons[0].startswith("audit: the cycle could not be recorded (OSError")
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=["safety/obstacles.py"])
+def test_an_object_faster_than_the_domain_allows_stops_the_robot(classifier: Classifier) -> None:
+    rt = Runtime(CONFIG, classifier=classifier)
+    angles = np.linspace(-math.pi, math.pi, 2000, endpoint=False)
+    reasons: list[str] = []
+    for k in range(8):  # a 0.3 m object 4 m ahead crossing at 6 m/s (0.6 m per scan)
+        cx, cy = 4.0, -2.0 + 0.6 * k
+        ranges = np.full(angles.size, np.inf)
+        bearing = math.atan2(cy, cx)
+        near = np.abs(np.angle(np.exp(1j * (angles - bearing)))) < 0.15 / math.hypot(cx, cy)
+        ranges[near] = math.hypot(cx, cy)
+        scan = Scan(10.0 + 0.1 * k, angles, ranges, seq=k)
+        out = rt.step(CycleInput.standing(scan, scan.stamp_s + 0.1, CONFIG, charge_s=0.01))
+        reasons += out.command.reasons
+    fast = [r for r in reasons if r.startswith("domain:object_speed: track")]
+    assert fast, reasons
+    assert "above predict.max_object_speed_mps = 3.5" in fast[0]

@@ -1,0 +1,226 @@
+"""What the governor is given: predicted zones, pedestrians, loose points (SR-RUN-1, -3).
+
+Helpers of :mod:`safety.runtime` that turn the perception stages' outputs into the regions the
+path clearance measures and the rows :class:`safety.decision.GovernorInputs` holds (see the
+runtime's module docstring for the reasoning), plus the operating-domain check on object speed.
+All regions are in the tracking frame unless they are envelopes (robot frame).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pipeline.config import PredictSection, SafecaseConfig
+from pipeline.predict import largest_std
+from pipeline.types import (
+    BoolArray,
+    Clusters,
+    ConvexPolygons,
+    Envelopes,
+    FloatArray,
+    FusedTracks,
+    IntArray,
+    PredictionMode,
+    Predictions,
+    ThermalDetections,
+    Tracks,
+    TrackStatus,
+)
+from safety.decision import GovernorInputs
+from safety.envelope import EnvelopeBuilder, grown_polygons
+from safety.geometry import convex_polygons, transform_polygons
+from safety.monitors import Verdict
+from safety.path import PathDistances
+from safety.stopping import StoppingParams
+
+__all__ = [
+    "bodies_now",
+    "faster_than_the_domain",
+    "governor_rows",
+    "pedestrian_regions",
+    "points_in_frame",
+    "stack_polygons",
+    "still_zones",
+    "thermal_in_frame",
+    "with_columns",
+]
+
+Pose = tuple[float, float, float]
+
+
+def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
+    """The polygons of ``a`` followed by those of ``b``."""
+    if b.n == 0:
+        return a
+    if a.n == 0:
+        return b
+    lists = [a.vertex_list(i) for i in range(a.n)] + [b.vertex_list(i) for i in range(b.n)]
+    return convex_polygons(lists)
+
+
+def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> ConvexPolygons:
+    """``base`` with polygons ``idx`` replaced by those of ``other`` (in order)."""
+    k = max(base.k, other.k)
+
+    def padded(p: ConvexPolygons) -> FloatArray:
+        out = np.empty((2, k, p.n))
+        out[:, : p.k] = p.vertices_m
+        out[:, p.k :] = p.vertices_m[:, :1]
+        return out
+
+    verts = padded(base)
+    verts[:, :, idx] = padded(other)
+    counts, slack = base.counts.copy(), base.slack_m.copy()
+    counts[idx], slack[idx] = other.counts, other.slack_m
+    return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)
+
+
+def thermal_in_frame(thermal: ThermalDetections, pose: Pose) -> ThermalDetections:
+    """Thermal detections moved from the robot frame at ``pose`` into the tracking frame."""
+    x0, y0, yaw = pose
+    if (x0, y0, yaw) == (0.0, 0.0, 0.0):
+        return thermal
+    c, s = math.cos(yaw), math.sin(yaw)
+    return ThermalDetections(
+        stamp_s=thermal.stamp_s,
+        x_m=x0 + c * thermal.x_m - s * thermal.y_m,
+        y_m=y0 + s * thermal.x_m + c * thermal.y_m,
+        confidence=thermal.confidence,
+    )
+
+
+def still_zones(
+    pred: Predictions,
+    tracks: Tracks,
+    clusters: Clusters,
+    pose: tuple[float, ...],
+    predict_section: PredictSection,
+) -> ConvexPolygons:
+    """Predicted zones (no margin), tracking frame: each row's reach region grown by its
+    body disc; a still object (footprint mode) seen this cycle is its cluster's convex hull
+    grown by its position uncertainty instead (a rack bay's disc would cover the aisle)."""
+    sides = predict_section.disc_sides
+    zones = grown_polygons(pred.reach_xy_m, pred.body_radius_m, sides)
+    row = np.searchsorted(tracks.track_id, pred.track_id)
+    det = tracks.detection_index[row]
+    still = (pred.mode == int(PredictionMode.FOOTPRINT)) & (det >= 0) & (det < clusters.n)
+    if not still.any():
+        return zones
+    idx = np.flatnonzero(still)
+    sigma = predict_section.velocity_sigmas * largest_std(tracks.covariance[row[idx], :2, :2])
+    k = det[idx]
+    start, size = clusters.hull_offsets[k], np.diff(clusters.hull_offsets)[k]
+    # Each hull padded by repeating its last vertex (a zero-length edge).
+    pick = start[:, None] + np.minimum(np.arange(size.max())[None, :], size[:, None] - 1)
+    hx, hy = clusters.hull_x_m[pick], clusters.hull_y_m[pick]
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    hull = np.stack([pose[0] + c * hx - s * hy, pose[1] + s * hx + c * hy], axis=2)
+    return with_columns(zones, idx, grown_polygons(hull, sigma, sides))
+
+
+def faster_than_the_domain(tracks: Tracks, predict_section: PredictSection) -> Verdict | None:
+    """STOP when a confirmed track is certainly faster (speed minus ``velocity_sigmas``
+    sigmas) than ``predict.max_object_speed_mps``: the predictions assume no such object."""
+    pc = predict_section
+    speed = np.hypot(tracks.state[:, 2], tracks.state[:, 3])
+    low = speed - pc.velocity_sigmas * largest_std(tracks.covariance[:, 2:, 2:])
+    fast = (tracks.status == int(TrackStatus.CONFIRMED)) & (low > pc.max_object_speed_mps)
+    if not fast.any():
+        return None
+    i = int(np.flatnonzero(fast)[np.argmax(low[fast])])
+    return Verdict.stop(
+        "domain:object_speed",
+        f"track {int(tracks.track_id[i])} moves at {speed[i]:.2f} m/s (at least "
+        f"{low[i]:.2f}), above predict.max_object_speed_mps = {pc.max_object_speed_mps}: "
+        "outside the operating domain the predictions assume",
+    )
+
+
+def points_in_frame(
+    x_m: FloatArray, y_m: FloatArray, pose: tuple[float, ...]
+) -> tuple[FloatArray, FloatArray]:
+    """Robot-frame points at ``pose`` moved into the tracking frame."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return pose[0] + c * x_m - s * y_m, pose[1] + s * x_m + c * y_m
+
+
+def pedestrian_regions(
+    now_s: float,
+    fused: FusedTracks,
+    robot_now: Pose,
+    config: SafecaseConfig,
+    params: StoppingParams,
+    envelopes: EnvelopeBuilder,
+) -> tuple[ConvexPolygons, ConvexPolygons]:
+    """Thermal-only pedestrians: bodies now (tracking frame; a disc grown by the walking
+    speed over the detection's age) and envelopes over the horizon (robot frame)."""
+    n = fused.n_pedestrians
+    if n == 0:
+        empty = convex_polygons(np.zeros((0, 3, 2)))
+        return empty, empty
+    p = params
+    age = np.maximum(now_s - fused.pedestrian_stamp_s, 0.0)
+    walk = float(p.person_speed_mps)
+    radius = config.runtime.person_radius_m + walk * age
+    centre = np.stack([fused.pedestrian_x_m, fused.pedestrian_y_m], axis=1)[:, None, :]
+    sides = config.predict.disc_sides
+    zones = grown_polygons(centre, radius, sides)
+    margin, _ = envelopes.margins(fused.pedestrian_confidence, np.zeros(n, dtype=bool))
+    reach = radius + walk * config.predict.horizon_s + margin
+    env = grown_polygons(centre, reach, sides)
+    x, y, yaw = robot_now
+    c, s = math.cos(-yaw), math.sin(-yaw)
+    env = transform_polygons(env, -(c * x - s * y), -(s * x + c * y), -yaw)
+    return zones, env
+
+
+def bodies_now(pred: Predictions, tracks: Tracks, rows: BoolArray, sides: int) -> ConvexPolygons:
+    """Body discs of prediction ``rows`` at the tracks' current positions."""
+    row = np.searchsorted(tracks.track_id, pred.track_id[rows])
+    centre = tracks.state[row, None, :2]
+    return grown_polygons(centre, pred.body_radius_m[rows], sides)
+
+
+def governor_rows(
+    now_s: float,
+    env: Envelopes,
+    fused: FusedTracks,
+    free_m: FloatArray,
+    ped_free_m: FloatArray,
+    dist: PathDistances,
+    params: StoppingParams,
+    loose_points: str,
+) -> GovernorInputs:
+    """One governor row per prediction row, pedestrian, loose point and the path's end."""
+    p = params
+    worst = float(p.worst_closing_speed_mps)
+    loose_closing = float(p.static_speed_mps) if loose_points == "static" else worst
+    n_ped = fused.n_pedestrians
+    # (free distance, closing speed, confidence, near-reversal) per group of rows
+    groups: list[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]] = [
+        (free_m, env.closing_speed_mps, env.confidence, env.near_reversal),
+        (
+            ped_free_m,
+            np.full(n_ped, float(p.person_speed_mps)),
+            fused.pedestrian_confidence,
+            np.zeros(n_ped, dtype=bool),
+        ),
+        ([dist.lookahead_m], [worst], [0.0], [False]),
+    ]
+    if dist.n_points_on_path:
+        groups.append(([dist.point_free_m], [loose_closing], [0.0], [False]))
+
+    def column(k: int, dtype: type) -> npt.NDArray[Any]:
+        return np.concatenate([np.asarray(g[k], dtype=dtype) for g in groups])
+
+    return GovernorInputs(
+        now_s,
+        column(0, np.float64),
+        column(1, np.float64),
+        np.clip(column(2, np.float64), 0.0, 1.0),
+        column(3, np.bool_),
+    )
