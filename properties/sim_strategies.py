@@ -92,9 +92,9 @@ def random_scenes(draw: st.DrawFn, max_polygons: int = 12, max_objects: int = 4)
         model = model_for(draw(st.sampled_from(kinds)))
         x, y, h = draw(coord), draw(coord), draw(st.floats(-math.pi, math.pi))
         traj = mo.integrate(mo.stationary(), x, y, h, 1.0)
-        verts = pose_points(model.outline.vertices_m, np.array([x]), np.array([y]), np.array([h]))[
-            0
-        ]
+        # The body as placed at rest (a person's shins stand apart from the outline's origin).
+        rest = model.body_vertices(np.zeros(1), np.zeros(1), np.zeros(1))[0]
+        verts = pose_points(rest, np.array([x]), np.array([y]), np.array([h]))[0]
         s_ = model.outline.part_starts
         if any(_inside(origin, verts[s_[p] : s_[p + 1]]) for p in range(model.outline.n_parts)):
             continue
