@@ -54,7 +54,8 @@ def run_command(
         ),
     ] = None,
     scans: Annotated[
-        int | None, typer.Option(min=1, help="Device modes: stop after this many scans.")
+        int | None,
+        typer.Option(min=1, help="Device modes: stop after this many scans (default 100)."),
     ] = None,
     audit: Annotated[
         Path | None, typer.Option(help="Audit log to write (default: under audit.log_dir).")
