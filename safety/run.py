@@ -14,6 +14,7 @@ command per scan.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -64,9 +65,7 @@ class RunSummary:
     @property
     def moving_contacts(self) -> int:
         """Contacts during which the robot was moving (the passive-safety violations)."""
-        return len(contact_speeds(self.sim)) - int(
-            np.count_nonzero(contact_speeds(self.sim) == 0.0)
-        )
+        return int(np.count_nonzero(contact_speeds(self.sim) > 0.0))
 
 
 def _reason_kind(reason: str) -> str:
@@ -148,18 +147,16 @@ def run_scenario(
 ) -> RunSummary:
     """A named scenario (default ``sim.scenario``) in closed loop, optionally audited."""
     sim = make_simulation(config, name, seed, duration_s)
-    p = params if params is not None else StoppingParams.from_config(config)
-    if audit_path is None:
-        return run_simulation(
-            config, sim, params=p, progress=progress, measured_clock=measured_clock
-        )
-    rt_probe = Runtime(config, params=p)
-    with AuditWriter(
-        audit_path, config, model_hash=rt_probe.classifier.model_sha256, params=p
-    ) as writer:
-        rt_probe.writer = writer
+    rt = Runtime(config, params=params)
+    with contextlib.ExitStack() as stack:
+        if audit_path is not None:
+            rt.writer = stack.enter_context(
+                AuditWriter(
+                    audit_path, config, model_hash=rt.classifier.model_sha256, params=rt.params
+                )
+            )
         summary = run_simulation(
-            config, sim, runtime=rt_probe, progress=progress, measured_clock=measured_clock
+            config, sim, runtime=rt, progress=progress, measured_clock=measured_clock
         )
     summary.audit_path = audit_path
     return summary
