@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from importlib import metadata
 from pathlib import Path
@@ -35,6 +35,15 @@ from typing import Annotated, Any
 
 import numpy as np
 import typer
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 
 from pipeline.classify import MODEL_CLASSES, PACKAGED_MODEL, card_path
 from pipeline.classify_data import (
@@ -86,14 +95,29 @@ def _run(args: tuple[SafecaseConfig, RunSpec, int]) -> Rows:
     return run_rows(*args)
 
 
-def gather_rows(config: SafecaseConfig, plan: Sequence[RunSpec], workers: int = 1) -> Rows:
-    """Rows of every run of ``plan``, in plan order whatever ``workers`` is (deterministic)."""
+def gather_rows(
+    config: SafecaseConfig,
+    plan: Sequence[RunSpec],
+    workers: int = 1,
+    progress: Callable[[int], None] | None = None,
+) -> Rows:
+    """Rows of every run of ``plan``, in plan order whatever ``workers`` is (deterministic).
+
+    ``progress`` is called with the number of runs done after each run.
+    """
     jobs = [(config, spec, i) for i, spec in enumerate(plan)]
+    parts: list[Rows] = []
     if workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            parts = list(pool.map(_run, jobs, chunksize=1))
+            for part in pool.map(_run, jobs, chunksize=1):
+                parts.append(part)
+                if progress is not None:
+                    progress(len(parts))
     else:
-        parts = [_run(job) for job in jobs]
+        for job in jobs:
+            parts.append(_run(job))
+            if progress is not None:
+                progress(len(parts))
     dropped: dict[str, int] = {}
     for part in parts:
         for key, value in part.dropped.items():
@@ -113,18 +137,22 @@ def gather_rows(config: SafecaseConfig, plan: Sequence[RunSpec], workers: int = 
 
 
 def cached_rows(
-    config: SafecaseConfig, plan: Sequence[RunSpec], workers: int, cache: Path | None
+    config: SafecaseConfig,
+    plan: Sequence[RunSpec],
+    workers: int,
+    cache: Path | None,
+    progress: Callable[[int], None] | None = None,
 ) -> Rows:
     """:func:`gather_rows`, reusing an earlier result for the same plan and configuration."""
     if cache is None:
-        return gather_rows(config, plan, workers)
+        return gather_rows(config, plan, workers, progress)
     dumped = config.model_dump(mode="json")
     sections = {k: dumped[k] for k in ROW_SECTIONS}
     key = json.dumps([sections, [list(vars_of(r)) for r in plan]], sort_keys=True)
     path = cache / f"rows-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
     if path.exists():
         return load_rows(path)
-    rows = gather_rows(config, plan, workers)
+    rows = gather_rows(config, plan, workers, progress)
     save_rows(path, rows)
     return load_rows(path)  # the same float32 rounding whether or not it came from the cache
 
@@ -258,8 +286,8 @@ def train_command(
         PACKAGED_MODEL.parent
     ),
     named_seeds: Annotated[int, typer.Option(min=0, help="Seeds per named scenario.")] = 30,
-    encounter_seeds: Annotated[int, typer.Option(min=0, help="random_encounter seeds.")] = 400,
-    drill_seeds: Annotated[int, typer.Option(min=0, help="Reversal drill seeds.")] = 300,
+    encounter_seeds: Annotated[int, typer.Option(min=0, help="random_encounter seeds.")] = 600,
+    drill_seeds: Annotated[int, typer.Option(min=0, help="Reversal drill seeds.")] = 450,
     test_named_seeds: Annotated[int, typer.Option(min=0, help="Held-out seeds per named.")] = 5,
     test_encounter_seeds: Annotated[int, typer.Option(min=0)] = 80,
     test_drill_seeds: Annotated[int, typer.Option(min=0)] = 60,
@@ -293,8 +321,25 @@ def train_command(
         test_named_seeds, test_encounter_seeds, test_drill_seeds, duration, TEST_SEED_BASE
     )
     typer.echo(f"data plan: {len(train_plan)} training and {len(test_plan)} held-out runs")
-    train = thin_static(cached_rows(cfg, train_plan, workers, cache), static_keep, seed)
-    test = cached_rows(cfg, test_plan, workers, cache) if test_plan else None
+    with Progress(
+        TextColumn("[bold]simulating[/] {task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("runs"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+
+        def rows_of(plan: list[RunSpec], what: str) -> Rows:
+            task = bar.add_task(what, total=len(plan))
+            return cached_rows(
+                cfg, plan, workers, cache, lambda done: bar.update(task, completed=done)
+            )
+
+        train = thin_static(rows_of(train_plan, "training plan"), static_keep, seed)
+        test = rows_of(test_plan, "held-out plan") if test_plan else None
     typer.echo(f"training on {train.n} rows: {train.model_counts()}")
     booster = train_booster(train, cfg.classify)
     extra: dict[str, Any] = {"training_data_static_keep": static_keep}

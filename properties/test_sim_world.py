@@ -90,15 +90,15 @@ def _independent_states(
         traj.heading_rad
     )
     v[np.abs(v) < STANDSTILL_MPS] = 0.0
-    sign = np.sign(v)
-    nz = np.flatnonzero(sign != 0)
-    flips = np.flatnonzero(sign[nz][1:] != sign[nz][:-1])
-    starts, ends = t[nz[flips]], t[nz[flips + 1]]  # last moving sample before, first after
+    moving = v != 0.0
+    # Stops: the first sample at rest after a moving one, and sign changes between two
+    # consecutive moving samples (taken half-way between them).
+    entry = np.flatnonzero(~moving[1:] & moving[:-1]) + 1
+    flip = np.flatnonzero(moving[1:] & moving[:-1] & (np.sign(v[1:]) != np.sign(v[:-1])))
+    stops = np.concatenate([t[entry], 0.5 * (t[flip] + t[flip + 1])])
     w = rules.reversal_window_s
     speed = np.abs(np.interp(t_s, t, v))
-    in_window = ((t_s[:, None] >= starts[None, :] - w) & (t_s[:, None] <= ends[None, :] + w)).any(
-        axis=1
-    )
+    in_window = (np.abs(t_s[:, None] - stops[None, :]) <= w).any(axis=1)
     near = in_window & (speed < rules.near_reversal_speed_mps)
     still = ~near & (speed < rules.stationary_speed_mps)
     out = np.full(t_s.shape, int(ObjectClass.FORKLIFT_MOVING))
@@ -107,7 +107,7 @@ def _independent_states(
     # Undecidable at the grid's resolution: speeds within the finite-difference error of a
     # threshold, times within two grid steps of a window edge.
     tol_v = 4e-3
-    edges = np.concatenate([starts - w, ends + w])
+    edges = np.concatenate([stops - w, stops + w])
     unclear = (
         (np.abs(speed - rules.near_reversal_speed_mps) < tol_v)
         | (np.abs(speed - rules.stationary_speed_mps) < tol_v)

@@ -9,14 +9,22 @@ drives them, with the thresholds of :class:`LabelRules`:
   zero: a knot speed of -1e-283 m/s is rounding, not a change of direction), such that the
   last non-zero speed before ``a`` and the first non-zero speed after ``b`` have opposite
   signs (forward, stop, backward);
+* a **stop** is the instant ``a`` at which the speed reaches zero after motion: the start of
+  a standstill interval entered from a non-zero speed, or a zero crossing (every reversal
+  starts with a stop; so does a plain stop-and-go; a forklift at rest from the start has none);
 * ``forklift_near_reversal`` at time ``t``: ``|v(t)| < near_reversal_speed_mps`` and some
-  reversal ``[a, b]`` has ``a - reversal_window_s <= t <= b + reversal_window_s``;
+  stop ``a`` has ``a - reversal_window_s <= t <= a + reversal_window_s``;
 * ``forklift_stationary``: not near reversal and ``|v(t)| < stationary_speed_mps``;
 * ``forklift_moving``: otherwise.
 
-The near-reversal speed threshold is the source material's (``|v| < 0.3 m/s``); a forklift
-that brakes to a stop without reversing is stationary, not near reversal. States are taken at
-the scan's stamp (the time of its first beam).
+The near-reversal speed threshold is the source material's (``|v| < 0.3 m/s``). The label is
+*causal* on purpose: whether a stop turns into a reversal is decided by the driver after the
+stop, so no observer (and no classifier) can tell a forklift braking for a reversal from one
+braking for a stop-and-go, nor the first second at rest of either. Both are near reversal: the
+state in which a reversal may come, which the predictor covers with its bimodal stop-or-reverse
+envelope and the widest margin tier. (An earlier rule labelled only the stops that did turn
+into reversals, which asked the classifier to know the future; see the README.) States are
+taken at the scan's stamp (the time of its first beam).
 """
 
 from __future__ import annotations
@@ -47,6 +55,7 @@ __all__ = [
     "object_labels",
     "reversal_intervals",
     "scan_truth",
+    "stop_times",
 ]
 
 
@@ -127,18 +136,28 @@ def reversal_intervals(motion: Motion) -> FloatArray:
     return np.array(rows, dtype=np.float64).reshape(-1, 2)
 
 
+def stop_times(motion: Motion) -> FloatArray:
+    """The stops of ``motion`` (module docstring), ascending [s].
+
+    Exact for the piecewise-linear speed: a stop is a zero knot after a non-zero one, or a
+    strict sign change inside a knot segment.
+    """
+    kt = motion.knot_t_s
+    kv = np.where(np.abs(motion.knot_v_mps) < STANDSTILL_MPS, 0.0, motion.knot_v_mps)
+    entry = np.flatnonzero((kv[1:] == 0.0) & (kv[:-1] != 0.0)) + 1
+    cross = np.flatnonzero(kv[:-1] * kv[1:] < 0)
+    tc = kt[cross] + kv[cross] / (kv[cross] - kv[cross + 1]) * (kt[cross + 1] - kt[cross])
+    out: FloatArray = np.sort(np.concatenate([kt[entry], tc]).astype(np.float64))
+    return out
+
+
 def forklift_states(motion: Motion, t_s: FloatArray, rules: LabelRules) -> IntArray:
     """Forklift state codes at times ``t_s`` from the motion (module docstring rules)."""
     t = np.asarray(t_s, dtype=np.float64)
     speed = np.abs(motion.speed_at(t))
-    rev = reversal_intervals(motion)
+    stops = stop_times(motion)
     w = rules.reversal_window_s
-    if rev.size:
-        in_window = ((t[:, None] >= rev[None, :, 0] - w) & (t[:, None] <= rev[None, :, 1] + w)).any(
-            axis=1
-        )
-    else:
-        in_window = np.zeros(t.shape, dtype=np.bool_)
+    in_window = (np.abs(t[:, None] - stops[None, :]) <= w).any(axis=1)
     near = in_window & (speed < rules.near_reversal_speed_mps)
     still = ~near & (speed < rules.stationary_speed_mps)
     out = np.full(t.shape, int(ObjectClass.FORKLIFT_MOVING), dtype=np.int64)

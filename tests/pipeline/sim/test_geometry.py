@@ -24,7 +24,13 @@ from pipeline.sim.shapes import (
     rectangle,
     signed_area,
 )
-from pipeline.sim.truth import LabelRules, ObjectClass, forklift_states, reversal_intervals
+from pipeline.sim.truth import (
+    LabelRules,
+    ObjectClass,
+    forklift_states,
+    reversal_intervals,
+    stop_times,
+)
 
 
 def test_outline_edges_close_each_part_counter_clockwise() -> None:
@@ -89,14 +95,30 @@ def test_reversing_profile_slows_within_frames_then_reverses() -> None:
         ObjectClass.FORKLIFT_NEAR_REVERSAL,
         ObjectClass.FORKLIFT_MOVING,
         ObjectClass.FORKLIFT_MOVING,
-        ObjectClass.FORKLIFT_STATIONARY,
+        ObjectClass.FORKLIFT_STATIONARY,  # 1.3 s after the last stop (5.7 s)
     ]
+    assert stop_times(m) == pytest.approx([2.4, 5.7])
 
 
-def test_a_stop_without_reversal_is_stationary_not_near_reversal() -> None:
-    m = mo.stop_and_go(1.0, 1.0, 2.0, 1.0, 2.0, 1)
+def test_a_plain_stop_is_near_reversal_for_the_window_then_stationary() -> None:
+    # Labels are causal: at a stop nobody can tell yet whether a reversal follows.
+    m = mo.stop_and_go(1.0, 1.0, 2.0, 1.0, 2.0, 1)  # at rest on [1.5, 3.5], then off again
     assert reversal_intervals(m).shape == (0, 2)
-    assert forklift_states(m, np.array([2.0]), LabelRules())[0] == ObjectClass.FORKLIFT_STATIONARY
+    assert stop_times(m) == pytest.approx([1.5])
+    states = forklift_states(m, np.array([1.4, 2.0, 2.5, 3.0, 4.5]), LabelRules())
+    assert list(states) == [
+        ObjectClass.FORKLIFT_NEAR_REVERSAL,  # braking at 0.2 m/s, 0.1 s before the stop
+        ObjectClass.FORKLIFT_NEAR_REVERSAL,
+        ObjectClass.FORKLIFT_NEAR_REVERSAL,  # the window's last instant
+        ObjectClass.FORKLIFT_STATIONARY,
+        ObjectClass.FORKLIFT_MOVING,
+    ]
+    parked = mo.stationary()
+    assert stop_times(parked).shape == (0,)
+    assert (
+        forklift_states(parked, np.array([0.0, 5.0]), LabelRules()).tolist()
+        == [ObjectClass.FORKLIFT_STATIONARY] * 2
+    )
 
 
 def test_integrated_straight_and_turning_paths() -> None:

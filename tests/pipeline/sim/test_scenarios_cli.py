@@ -42,16 +42,18 @@ def test_the_reversing_forklift_passes_through_all_three_states() -> None:
     cfg = overridden(default_config(), {"sim": {"beams": 90}})
     result = make_simulation(cfg, "reversing_forklift_aisle", 3, 12.0).run(lambda obs: 0.0)
     labels = [int(f.truth.label[0]) for f in result.frames]
-    # Forward, then near reversal for a few frames, then reversing (moving), then at rest.
+    # Forward, near reversal around the stop, reversing (moving), near reversal again as it
+    # comes to rest, then at rest.
     seen = [c for i, c in enumerate(labels) if i == 0 or c != labels[i - 1]]
     assert seen == [
         ObjectClass.FORKLIFT_MOVING,
         ObjectClass.FORKLIFT_NEAR_REVERSAL,
         ObjectClass.FORKLIFT_MOVING,
+        ObjectClass.FORKLIFT_NEAR_REVERSAL,
         ObjectClass.FORKLIFT_STATIONARY,
     ]
     near = labels.count(ObjectClass.FORKLIFT_NEAR_REVERSAL)
-    assert 3 <= near <= 15
+    assert 6 <= near <= 30
     assert not result.contact  # the robot stood still from the start
 
 
