@@ -22,6 +22,7 @@ from pipeline.drivers.devices import RplidarDevice, ScipDevice
 from pipeline.drivers.rplidar_stream import RplidarStream
 from pipeline.drivers.scip_stream import ScipStream
 from pipeline.types import Scan
+from properties.oracles.drivers import checked_capsules, checked_scip_lines
 
 __all__ = [
     "LINKS",
@@ -29,6 +30,7 @@ __all__ = [
     "Verdict",
     "decode",
     "device_frames",
+    "forged_frames",
     "judge",
     "link_scans",
     "wrap_rad",
@@ -195,6 +197,18 @@ def same_scan(a: Scan, b: Scan) -> bool:
             )
         )
     )
+
+
+def forged_frames(link: Link, sent: bytes, received: bytes) -> int:
+    """Frames of ``received`` that pass every check of the link's protocol (sync and XOR
+    checksum of an express capsule, alphabet and 6-bit checksum of a SCIP line) but were
+    never sent: checksum collisions no decoder can reject. RPLIDAR standard nodes carry no
+    checksum, so this is not defined for them (raises ``ValueError``)."""
+    if link == "rplidar-express":
+        return len(checked_capsules(received) - checked_capsules(sent))
+    if link in ("scip-md", "scip-ms"):
+        return len(checked_scip_lines(received) - checked_scip_lines(sent))
+    raise ValueError(f"forged_frames: link {link!r} has no frame checksum")
 
 
 def foreign_beams(clean: Sequence[Scan], faulty: Sequence[Scan]) -> int:

@@ -32,6 +32,7 @@ from properties.driver_streams import (
     device_frames,
     expected_scans,
     foreign_beams,
+    forged_frames,
     judge,
     link_scans,
     wrap_rad,
@@ -204,7 +205,15 @@ def test_spliced_garbage_never_yields_data_that_was_not_sent(
                 assert tuple(int(v) for v in beam) in windows
         record.count("spliced", f"{link} foreign beams (not asserted)", foreign_beams(clean, got))
     else:
-        assert foreign_beams(clean, got) == 0
+        # A checksum cannot see every change (SCIP sums 6 bits per line, an express capsule
+        # XORs 8): junk that happens to form a frame passing the protocol's own checks is
+        # indistinguishable from a sent frame. Data never sent may come only from such.
+        forged = forged_frames(link, frames.data, bytes(stream))
+        if not forged:
+            assert foreign_beams(clean, got) == 0
+        record.count(
+            "spliced", f"{link} streams with a forged check-passing frame", int(forged > 0)
+        )
     record.count("spliced", f"{link} rejected frames", counters.frames_rejected)
     record.count("spliced", f"{link} streams", 1)
 

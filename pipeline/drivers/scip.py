@@ -229,7 +229,7 @@ def encode_data_lines(values: npt.ArrayLike, width: int, timestamp_ms: int | Non
 
 
 def decode_data_lines(
-    lines: list[bytes], width: int, n_values: int, offset: int = 0
+    lines: list[bytes], width: int, n_values: int, offset: int = 0, *, from_first: bool = True
 ) -> tuple[I64Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Values of a scan's data lines (each payload + checksum, no LF; no timestamp line).
 
@@ -237,7 +237,9 @@ def decode_data_lines(
     alphabet and has the length its position requires (64 characters, the last one the
     remainder); a value is valid only when all its characters lie in good lines. Values of
     a failing line are never guessed. Lines beyond the expected count are ignored (and
-    reported not good).
+    reported not good). ``from_first=False`` says the first line may not be the first data
+    line (the line before it was broken): lines are then placed only by counting back from
+    the last one.
     """
     total = n_values * width
     expected = -(-total // DATA_LINE_CHARS)
@@ -246,7 +248,7 @@ def decode_data_lines(
         want[-1] = total - DATA_LINE_CHARS * (expected - 1) + 1
     lengths = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
     lines_ok = np.zeros(len(lines), dtype=np.bool_)
-    if len(lines) >= expected and np.array_equal(lengths[:expected], want):
+    if from_first and len(lines) >= expected and np.array_equal(lengths[:expected], want):
         # Fast path (every line has its length): check and decode all lines at once.
         raw = np.frombuffer(b"".join(lines[:expected]), dtype=np.uint8)
         ends = np.cumsum(want)
@@ -269,7 +271,7 @@ def decode_data_lines(
         good = np.zeros(total, dtype=np.bool_)
         n = len(lines)
         position = np.full(n, -1, dtype=np.int64)
-        for i in range(min(n, expected)):
+        for i in range(min(n, expected) if from_first else 0):
             if lengths[i] != want[i]:
                 break
             position[i] = i

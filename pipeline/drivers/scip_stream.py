@@ -66,6 +66,7 @@ class ScipStream:
         self._state = _State.IDLE
         self._lines: list[bytes] = []
         self._broken = False
+        self._head_lost = False
         self._stamp_s = 0.0
         self._seq = 0
 
@@ -76,6 +77,7 @@ class ScipStream:
         self._state = _State.IDLE
         self._lines = []
         self._broken = False
+        self._head_lost = False
 
     def _is_echo(self, line: bytes) -> bool:
         if not self._streaming:
@@ -141,6 +143,7 @@ class ScipStream:
             self._state = _State.STATUS
             self._lines = []
             self._broken = False
+            self._head_lost = False
             # The answer follows a whole revolution's measurement: date the first beam one
             # revolution before the echo arrived (never later than it was measured).
             self._stamp_s = now_s - self.params.scan_period_s
@@ -166,6 +169,9 @@ class ScipStream:
             else:
                 self._reject_line(line)
                 self._broken = True
+                # A timestamp line of the wrong length may have swallowed the first data
+                # line (a lost LF): the data lines can then only be placed from the end.
+                self._head_lost = len(line) != 5
             self._state = _State.DATA
             return
         self._lines.append(line)  # DATA lines are normally taken by _data_lines
@@ -198,7 +204,7 @@ class ScipStream:
         lines = self._lines
         self._lines = []
         values, valid, lines_ok = decode_data_lines(
-            lines, self.command.width, self.command.n_values
+            lines, self.command.width, self.command.n_values, from_first=not self._head_lost
         )
         good_lines = int(np.count_nonzero(lines_ok))
         bad_lines = len(lines) - good_lines

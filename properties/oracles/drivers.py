@@ -10,7 +10,9 @@ from __future__ import annotations
 
 __all__ = [
     "checked_capsule_distances",
+    "checked_capsules",
     "checked_node_windows",
+    "checked_scip_lines",
     "scip_values",
     "standard_nodes",
 ]
@@ -41,9 +43,9 @@ def checked_node_windows(data: bytes) -> set[tuple[int, int, int]]:
     return out
 
 
-def checked_capsule_distances(data: bytes, size: int = 84) -> set[int]:
-    """Distances (mm) of every node of every ``size``-byte window, at any offset, that
-    passes the sync nibbles and XOR checksum of an express capsule."""
+def checked_capsules(data: bytes, size: int = 84) -> set[bytes]:
+    """Every ``size``-byte window, at any offset, that passes the sync nibbles and XOR
+    checksum of an express capsule."""
     out = set()
     for i in range(len(data) - size + 1):
         if data[i] >> 4 != 0xA or data[i + 1] >> 4 != 0x5:
@@ -51,12 +53,29 @@ def checked_capsule_distances(data: bytes, size: int = 84) -> set[int]:
         checksum = 0
         for byte in data[i + 2 : i + size]:
             checksum ^= byte
-        if checksum != (data[i] & 0xF) | ((data[i + 1] & 0xF) << 4):
-            continue
+        if checksum == (data[i] & 0xF) | ((data[i + 1] & 0xF) << 4):
+            out.add(bytes(data[i : i + size]))
+    return out
+
+
+def checked_capsule_distances(data: bytes, size: int = 84) -> set[int]:
+    """Distances (mm) of every node of every checked capsule window (:func:`checked_capsules`)."""
+    out = set()
+    for capsule in checked_capsules(data, size):
         for c in range(16):
-            cab = data[i + 4 + 5 * c : i + 9 + 5 * c]
+            cab = capsule[4 + 5 * c : 9 + 5 * c]
             out.add((cab[0] | (cab[1] << 8)) >> 2)
             out.add((cab[2] | (cab[3] << 8)) >> 2)
+    return out
+
+
+def checked_scip_lines(data: bytes) -> set[bytes]:
+    """Every LF-terminated line of ``data`` that passes the SCIP checks of a data line: at
+    least one payload character, all in 0x30..0x6F, and the 6-bit sum checksum."""
+    out = set()
+    for line in data.split(b"\n")[:-1]:
+        if len(line) >= 2 and scip_values([line], 1) is not None:
+            out.add(line)
     return out
 
 

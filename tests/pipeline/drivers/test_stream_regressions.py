@@ -25,6 +25,20 @@ def _rplidar_scans(n: int = 360) -> list[Scan]:
     ]
 
 
+def _scip_scans(seed: int) -> list[Scan]:
+    """Two UTM-30LX revolutions (1081 steps) of random ranges."""
+    steps = np.arange(0, 1081)
+    rng = np.random.default_rng(seed)
+    return [
+        Scan(
+            0.0,
+            (steps - 540).astype(np.float64) * (2 * np.pi / 1440),
+            np.rint(rng.uniform(100, 20000, 1081)) / 1000,
+        )
+        for _ in range(2)
+    ]
+
+
 @pytest.mark.requirement("SR-DRV-2", "SR-DRV-3", code=STREAMS)
 def test_duplicated_byte_cannot_forge_a_start_flag() -> None:
     scans = _rplidar_scans()
@@ -49,16 +63,7 @@ def test_duplicated_byte_cannot_forge_a_start_flag() -> None:
 
 @pytest.mark.requirement("SR-DRV-2", "SR-DRV-3", code=STREAMS)
 def test_scip_lines_after_a_merged_line_keep_their_positions() -> None:
-    steps = np.arange(0, 1081)
-    rng = np.random.default_rng(10)
-    scans = [
-        Scan(
-            0.0,
-            (steps - 540).astype(np.float64) * (2 * np.pi / 1440),
-            np.rint(rng.uniform(100, 20000, 1081)) / 1000,
-        )
-        for _ in range(2)
-    ]
+    scans = _scip_scans(10)
     frames = device_frames("scip-md", scans)
     clean, clean_counters = decode("scip-md", frames, frames.data)
     faulty = list(frames.frames)
@@ -67,6 +72,24 @@ def test_scip_lines_after_a_merged_line_keep_their_positions() -> None:
     assert foreign_beams(clean, got) == 0
     assert not got[0].complete
     assert got[0].n_beams == 1081 - 43  # the two merged lines' values (128 chars) are lost
+    assert judge(clean, clean_counters, got, counters) == "detected"
+
+
+@pytest.mark.requirement("SR-DRV-2", "SR-DRV-3", code=STREAMS)
+def test_scip_timestamp_line_that_swallowed_the_first_data_line() -> None:
+    # Found by make certify: the timestamp line loses its LF (it swallows data line 0) and a
+    # later data line gains a byte. Counting data lines from the first one would then put
+    # every line before the long one a slot early: right values at the wrong angles.
+    scans = _scip_scans(11)
+    frames = device_frames("scip-md", scans)
+    clean, clean_counters = decode("scip-md", frames, frames.data)
+    faulty = list(frames.frames)
+    stamp = next(i for i, f in enumerate(faulty) if len(f) == 6)  # 4 chars + sum + LF
+    faulty[stamp] = faulty[stamp][:-1]
+    faulty[stamp + 20] = b"0" + faulty[stamp + 20]
+    got, counters = decode("scip-md", frames, frames.prefix + b"".join(faulty))
+    assert foreign_beams(clean, got) == 0
+    assert not got[0].complete
     assert judge(clean, clean_counters, got, counters) == "detected"
 
 
