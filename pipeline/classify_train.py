@@ -29,6 +29,7 @@ import hashlib
 import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from importlib import metadata
 from pathlib import Path
 from typing import Annotated, Any
@@ -107,15 +108,9 @@ def gather_rows(
     """
     jobs = [(config, spec, i) for i, spec in enumerate(plan)]
     parts: list[Rows] = []
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for part in pool.map(_run, jobs, chunksize=1):
-                parts.append(part)
-                if progress is not None:
-                    progress(len(parts))
-    else:
-        for job in jobs:
-            parts.append(_run(job))
+    with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
+        for part in pool.map(_run, jobs, chunksize=1) if pool else map(_run, jobs):
+            parts.append(part)
             if progress is not None:
                 progress(len(parts))
     dropped: dict[str, int] = {}
