@@ -143,7 +143,9 @@ def cached_rows(
         return gather_rows(config, plan, workers, progress)
     dumped = config.model_dump(mode="json")
     sections = {k: dumped[k] for k in ROW_SECTIONS}
-    key = json.dumps([sections, [list(vars_of(r)) for r in plan]], sort_keys=True)
+    key = json.dumps(
+        [sections, list(FEATURE_NAMES), [list(vars_of(r)) for r in plan]], sort_keys=True
+    )
     path = cache / f"rows-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
     if path.exists():
         return load_rows(path)

@@ -15,8 +15,12 @@ fails (the row goes right) rules out the leaves of its left subtree. For every f
 thresholds are sorted once, and for each position of a value among them the AND of the
 ruled-out masks of every node it fails is precomputed per tree. A row then needs, per feature,
 one binary search and one table row, an AND over the features, and the lowest set bit of each
-tree's mask is its exit leaf: no per-node work at run time. Deeper trees fall back to walking
-all trees level by level (:class:`TreeEnsemble` picks the path on load).
+tree's mask is its exit leaf: no per-node work at run time. The per-feature tables are stacked
+into one array and every feature's thresholds into one sorted array of 64-bit keys (feature
+index above an order-preserving image of the float32 bits), so one binary search and one
+gather serve all features of all rows: a handful of numpy calls per batch instead of four per
+feature. Deeper trees fall back to walking all trees level by level (:class:`TreeEnsemble`
+picks the path on load).
 """
 
 from __future__ import annotations
@@ -37,7 +41,11 @@ U64 = npt.NDArray[np.uint64]
 F32 = npt.NDArray[np.float32]
 _ALL = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
 _MAX_BITMASK_LEAVES = 64
-_CHUNK_ROWS = 256
+# Rows per pass: the gathered table rows of a pass are rows x features x trees x 8 bytes
+# (4.6 MB for 32 rows, 15 features and 1208 trees).
+_CHUNK_ROWS = 32
+_SIGN = np.uint64(0x8000_0000)
+_LOW32 = np.uint64(0xFFFF_FFFF)
 
 
 class ModelFormatError(SafecaseError, ValueError):
@@ -201,7 +209,7 @@ class TreeEnsemble:
                     )
                 )
         self._thresholds: list[F32] = []
-        self._tables: list[U64] = []
+        tables: list[U64] = []
         for f in range(n_feat):
             if per_feature[f]:
                 tt = np.concatenate([p[0] for p in per_feature[f]])
@@ -223,9 +231,21 @@ class TreeEnsemble:
             table[-1] = _ALL
             np.bitwise_and.at(table[-1], tt[~dl], mk[~dl])
             self._thresholds.append(uniq)
-            self._tables.append(table)
+            tables.append(table)
+        self._stacked = np.concatenate(tables, axis=0)
+        first_row = np.cumsum([0] + [t.shape[0] for t in tables])[:-1]
+        n_thr = np.array([t.shape[0] for t in self._thresholds], dtype=np.intp)
+        self._first_row = first_row.astype(np.intp)
+        self._nan_row = (first_row + n_thr + 1).astype(np.intp)
+        self._key_start = (np.cumsum(n_thr) - n_thr).astype(np.intp)
+        self._feature_key = np.left_shift(np.arange(n_feat, dtype=np.uint64), np.uint64(32))
+        self._keys = np.concatenate(
+            [self._feature_key[f] | _sortable(th) for f, th in enumerate(self._thresholds)]
+            + [np.zeros(0, dtype=np.uint64)]
+        )
         self._leaf_flat = leaf_table.reshape(-1)
         self._tree_offset = np.arange(n_trees, dtype=np.intp) * _MAX_BITMASK_LEAVES
+        self._gather_buf = np.empty((_CHUNK_ROWS * n_feat, n_trees), dtype=np.uint64)
         shape = (_CHUNK_ROWS, n_trees)
         self._mask_buf = np.empty(shape, dtype=np.uint64)
         self._scratch_buf = np.empty(shape, dtype=np.uint64)
@@ -267,14 +287,16 @@ class TreeEnsemble:
             # fresh mmap'd pages every call, so they live in buffers made once.
             mask = self._mask_buf[:n]
             scratch = self._scratch_buf[:n]
-            for f in range(self.n_features):
-                column = x32[:, f]
-                thresholds = self._thresholds[f]
-                rows = np.searchsorted(thresholds, column, side="right")
-                rows[np.isnan(column)] = thresholds.shape[0] + 1
-                np.take(self._tables[f], rows, axis=0, out=mask if f == 0 else scratch)
-                if f:
-                    np.bitwise_and(mask, scratch, out=mask)
+            # Row of each feature's table: the number of its thresholds <= x (a key search
+            # over all features at once), or the NaN row.
+            keys = self._feature_key | _sortable(x32)
+            rank = np.searchsorted(self._keys, keys, side="right") - self._key_start
+            rows = np.where(np.isnan(x32), self._nan_row, self._first_row + rank)
+            gathered = self._gather_buf[: n * self.n_features]
+            np.take(self._stacked, rows.reshape(-1), axis=0, out=gathered, mode="clip")
+            np.bitwise_and.reduce(
+                gathered.reshape(n, self.n_features, self._n_columns), axis=1, out=mask
+            )
             # Exit leaf = index of the lowest set bit = number of zeros below it.
             np.subtract(mask, np.uint64(1), out=scratch)
             np.invert(mask, out=mask)
@@ -284,7 +306,7 @@ class TreeEnsemble:
             np.add(self._count_buf[:n], self._tree_offset, out=leaf)
             # Tree-major output, so the per-class sums below add whole contiguous planes.
             values = self._value_buf[: self._n_columns * n].reshape(self._n_columns, n)
-            np.take(self._leaf_flat, leaf.T, out=values)
+            np.take(self._leaf_flat, leaf.T, out=values, mode="clip")
             out: F32 = values.reshape(shape)
             return out
         trees = np.arange(self._n_columns)[None, :]
@@ -323,6 +345,16 @@ class TreeEnsemble:
         np.exp(margin, out=margin)
         margin /= margin.sum(axis=1, keepdims=True)
         return margin
+
+
+def _sortable(values: F32) -> U64:
+    """Order-preserving uint64 image of float32 values (NaN excluded): ``a < b`` as floats
+    exactly when ``image(a) < image(b)``, with -0.0 taken as 0.0 (they compare equal)."""
+    bits = (np.asarray(values, dtype=np.float32) + np.float32(0.0)).view(np.uint32)
+    wide = bits.astype(np.uint64)
+    negative = wide >= _SIGN
+    image: U64 = np.where(negative, ~wide & _LOW32, wide | _SIGN)
+    return image
 
 
 def _depth(tree: _Tree) -> int:

@@ -51,7 +51,11 @@ def make_tracks(
         size_variance_m2=np.zeros(n),
         decel_mps2=np.zeros(n),
         history_xy_m=np.full((n, 15, 2), np.nan),
+        history_speed_mps=np.full((n, 15), np.nan),
+        history_t_s=np.full((n, 15), np.nan),
         history_len=np.zeros(n, dtype=np.int64),
+        max_width_m=np.full(n, 0.5),
+        max_length_m=np.full(n, 0.8),
         reid_count=np.zeros(n, dtype=np.int64),
     )
 

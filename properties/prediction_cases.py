@@ -89,7 +89,13 @@ def tracks_of(
         size_variance_m2=np.zeros(1),
         decel_mps2=np.zeros(1),
         history_xy_m=hist,
+        history_speed_mps=np.where(np.isnan(hist[:, :, 0]), np.nan, float(np.hypot(*v))),
+        history_t_s=np.where(
+            np.isnan(hist[:, :, 0]), np.nan, 0.1 * (np.arange(history_len) - history_len + 1)
+        ),
         history_len=one * k,
+        max_width_m=np.array([width_m]),
+        max_length_m=np.array([length_m]),
         reid_count=0 * one,
     )
 

@@ -82,7 +82,7 @@ def feature_matrix(
         up = np.nextafter(exact, f32(np.inf))
         down = np.nextafter(exact, f32(-np.inf))
         spread = rng.normal(size=n) * (np.abs(exact.astype(np.float64)) + 1.0) * 2.0
-        extreme = rng.choice([-3e38, -1e10, -1e-30, 0.0, 1e-30, 1e10, 3e38], size=n)
+        extreme = rng.choice([-3e38, -1e10, -1e-30, -0.0, 0.0, 1e-30, 1e10, 3e38], size=n)
         out[:, f] = np.choose(kind, [exact, up, down, exact + spread, extreme])
     out[rng.random(out.shape) < nan_share] = np.nan
     return out

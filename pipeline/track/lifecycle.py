@@ -62,6 +62,9 @@ class TrackStore:
         self.hist_len = np.zeros(cap, dtype=np.int64)
         self.size_wl = np.full((cap, s, 2), np.nan)
         self.size_len = np.zeros(cap, dtype=np.int64)
+        # Largest box width and length seen since birth: a part-view of a large object (a
+        # fork tip, a mast past an occluder) keeps the size the track once showed.
+        self.max_wl = np.full((cap, 2), np.nan)
         self.next_id = 0
 
     # -- queries ---------------------------------------------------------------------------
@@ -109,6 +112,7 @@ class TrackStore:
         self.hist_len[slots] = 0
         self.size_wl[slots] = np.nan
         self.size_len[slots] = 0
+        self.max_wl[slots] = np.nan
         self.record(slots, stamp_s, wl_m)
         return slots
 
@@ -126,6 +130,7 @@ class TrackStore:
         self.size_wl[slots, :-1] = self.size_wl[slots, 1:]
         self.size_wl[slots, -1] = wl_m
         self.size_len[slots] = np.minimum(self.size_len[slots] + 1, self.size_wl.shape[1])
+        self.max_wl[slots] = np.fmax(self.max_wl[slots], wl_m)
 
     def delete(self, slots: IntArray) -> None:
         """Free slots (their IDs are retired for good)."""

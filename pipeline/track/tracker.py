@@ -258,6 +258,10 @@ class Tracker:
             size_variance_m2=size_var,
             decel_mps2=decel,
             history_xy_m=st.hist_xy[slots],
+            history_speed_mps=st.hist_speed[slots],
+            history_t_s=st.hist_t[slots],
             history_len=st.hist_len[slots],
+            max_width_m=st.max_wl[slots, 0],
+            max_length_m=st.max_wl[slots, 1],
             reid_count=st.reid_count[slots],
         )

@@ -161,6 +161,9 @@ class Tracks:
     ``decel_mps2`` the least-squares deceleration of the filtered speed over the configured
     window (positive when slowing), ``size_variance_m2`` the variance of width plus that of
     length over the configured frames. ``reid_count`` counts re-identifications of the track.
+    ``history_speed_mps`` and ``history_t_s`` are the filtered speeds and stamps of the same
+    history entries; ``max_width_m`` and ``max_length_m`` the largest box the track has shown
+    since it was born (a part-view of a large object keeps the size once seen).
     """
 
     stamp_s: float
@@ -178,7 +181,11 @@ class Tracks:
     size_variance_m2: FloatArray
     decel_mps2: FloatArray
     history_xy_m: FloatArray
+    history_speed_mps: FloatArray
+    history_t_s: FloatArray
     history_len: IntArray
+    max_width_m: FloatArray
+    max_length_m: FloatArray
     reid_count: IntArray
 
     def __post_init__(self) -> None:
@@ -193,6 +200,10 @@ class Tracks:
                 "size_variance_m2",
                 "decel_mps2",
                 "history_xy_m",
+                "history_speed_mps",
+                "history_t_s",
+                "max_width_m",
+                "max_length_m",
             ),
             np.float64,
         )
@@ -213,6 +224,11 @@ class Tracks:
         n = self.track_id.shape[0]
         if self.state.shape != (n, 4) or self.covariance.shape != (n, 4, 4):
             raise ValueError(f"Tracks: state must be ({n}, 4) and covariance ({n}, 4, 4)")
+        h = self.history_xy_m.shape[:2]
+        if self.history_speed_mps.shape != h or self.history_t_s.shape != h:
+            raise ValueError(f"Tracks: history_speed_mps and history_t_s must be {h}")
+        if self.max_width_m.shape != (n,) or self.max_length_m.shape != (n,):
+            raise ValueError(f"Tracks: max_width_m and max_length_m must be ({n},)")
 
     @property
     def n(self) -> int:

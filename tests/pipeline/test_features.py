@@ -12,6 +12,8 @@ from pipeline.cluster import cluster_scan
 from pipeline.config import default_config
 from pipeline.features import (
     FEATURE_NAMES,
+    MEMORY_FEATURE_NAMES,
+    SOURCE_FEATURE_NAMES,
     detections_in_frame,
     feature_index,
     track_features,
@@ -35,7 +37,9 @@ def _scan_of_box(stamp: float, cx: float, cy: float, half: float = 0.3) -> Scan:
 
 
 def test_names_and_index() -> None:
-    assert len(FEATURE_NAMES) == 10
+    assert len(SOURCE_FEATURE_NAMES) == 10
+    assert FEATURE_NAMES[:10] == SOURCE_FEATURE_NAMES
+    assert FEATURE_NAMES[10:] == MEMORY_FEATURE_NAMES
     assert feature_index("is_near_reversal") == 9
     with pytest.raises(KeyError, match="unknown feature 'speed'"):
         feature_index("speed")
@@ -83,6 +87,44 @@ def test_near_reversal_flag_thresholds(speed: float, decel: float, flag: float) 
     tracks = tracks_of(np.zeros(2), np.array([speed, 0.0]), 0.01, 0.01, 0.5, 1.0, np.zeros((1, 2)))
     tracks = replace(tracks, decel_mps2=np.array([decel]))
     assert track_features(tracks, None, config.predict).values[0, 9] == flag
+
+
+def test_a_part_view_keeps_the_largest_box_the_track_showed() -> None:
+    config = default_config()
+    tracker = Tracker(config.track)
+    for k in range(12):
+        # The box is seen whole for six scans, then only a 0.2 m part of it.
+        half = 0.4 if k < 6 else 0.1
+        _, clusters = cluster_scan(_scan_of_box(0.1 * k, 4.0, 0.0, half), config)
+        tracks = tracker.step(detections_in_frame(clusters, (0.0, 0.0, 0.0)))
+    row = track_features(tracks, clusters, config.predict).values[0]
+    assert row[feature_index("bbox_length_m")] < 0.3
+    assert row[feature_index("max_length_m")] == pytest.approx(0.8, abs=0.05)
+    assert row[feature_index("max_width_m")] >= row[feature_index("bbox_width_m")]
+    assert row[feature_index("range_m")] == pytest.approx(4.0, abs=0.1)
+
+
+@pytest.mark.parametrize(
+    ("speeds", "peak", "since"),
+    [
+        ([1.0, 0.5, 0.2, 0.1], 1.0, 0.2),  # last fast at t = 0.2, newest at 0.4
+        ([0.2, 0.3, 0.29, 0.0], 0.3, 0.2),  # the threshold itself counts as moving
+        ([0.1, 0.2, 0.1, 0.4], 0.4, 0.0),  # moving now
+        ([0.1, 0.2, 0.29, 0.0], 0.29, math.nan),  # never as fast: missing, not guessed
+    ],
+)
+def test_speed_memory_from_the_history(speeds: list[float], peak: float, since: float) -> None:
+    config = default_config()
+    tracks = tracks_of(np.zeros(2), np.zeros(2), 0.01, 0.01, 0.5, 1.0, np.zeros((1, 2)))
+    history = np.full((1, 15), np.nan)
+    history[0, -4:] = speeds
+    stamps = np.full((1, 15), np.nan)
+    stamps[0, -4:] = [0.1, 0.2, 0.3, 0.4]
+    tracks = replace(tracks, history_speed_mps=history, history_t_s=stamps)
+    row = track_features(tracks, None, config.predict).values[0]
+    assert row[feature_index("peak_speed_mps")] == pytest.approx(peak)
+    got = row[feature_index("time_since_moving_s")]
+    assert got == pytest.approx(since, nan_ok=True)
 
 
 def test_detections_move_into_the_frame() -> None:
