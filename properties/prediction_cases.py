@@ -119,9 +119,14 @@ def classification(tracks: Tracks, class_name: str | None, confidence: float) ->
 
 
 def features_for(tracks: Tracks, near_reversal: bool) -> TrackFeatures:
-    """Feature rows with only the near-reversal flag set (all prediction reads)."""
+    """Feature rows with the near-reversal flag set or not, the tracks' speeds and a history
+    that never moved (what prediction reads)."""
     values = np.zeros((tracks.n, N_FEATURES))
     values[:, feature_index("is_near_reversal")] = float(near_reversal)
+    values[:, feature_index("velocity_magnitude_mps")] = np.hypot(
+        tracks.state[:, 2], tracks.state[:, 3]
+    )
+    values[:, feature_index("time_since_moving_s")] = np.nan
     return TrackFeatures(tracks.stamp_s, tracks.track_id, tracks.status, values)
 
 

@@ -23,8 +23,8 @@ from pipeline.classify import Classifier, ModelHashError, card_path, file_sha256
 from pipeline.classify_data import Rows, load_rows
 from pipeline.config import SafecaseConfig, overridden
 from pipeline.features import N_FEATURES, feature_index
-from pipeline.predict import track_modes
-from pipeline.types import Classification, FloatArray
+from pipeline.predict import near_reversal_flags, track_modes
+from pipeline.types import Classification, FloatArray, TrackFeatures
 from properties.oracles.classify import (
     booster,
     model_thresholds,
@@ -149,7 +149,8 @@ def _safety_margins(
     classification: Classification, rows: Rows, config: SafecaseConfig
 ) -> tuple[np.ndarray, float]:
     """Margin each row would get at run time, and the near-reversal tier's margin."""
-    flagged = rows.features[:, feature_index("is_near_reversal")] > 0.5
+    values = TrackFeatures(0.0, np.arange(rows.n), np.zeros(rows.n, np.int64), rows.features)
+    flagged = near_reversal_flags(values, config.predict)
     near, _, _, unknown = track_modes(
         classification, flagged, config.classify.medium_confidence_min
     )

@@ -156,7 +156,10 @@ class PredictSection(Section):
     are drawn as circumscribed polygons (arc pieces of at most ``arc_step_deg``, discs of
     ``disc_sides`` sides), so the polygons contain the exact regions. A near-reversal track's
     last confirmed heading is the direction of its centroid history when that spans at least
-    ``heading_min_travel_m``. No object of the operating domain moves faster than
+    ``heading_min_travel_m``. A forklift-class track slower than ``near_reversal_speed_mps``
+    whose history was moving within ``near_reversal_memory_s`` is predicted as near reversal
+    whatever state the classifier gave it (the simulator labels such a truck near reversal).
+    No object of the operating domain moves faster than
     ``max_object_speed_mps``: it caps every speed bound (an assumption; the runtime stops when a
     confirmed track is seen faster). ``step_s`` samples the horizon where a finite set of times is
     needed (evaluation).
@@ -169,6 +172,7 @@ class PredictSection(Section):
     max_object_speed_mps: float = Field(3.5, gt=0.0, le=20.0)
     near_reversal_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
     near_reversal_decel_mps2: float = Field(0.4, ge=0.0, le=20.0)
+    near_reversal_memory_s: float = Field(1.0, ge=0.0, le=10.0)
     velocity_sigmas: float = Field(2.0, ge=0.0, le=10.0)
     min_body_radius_m: float = Field(0.1, gt=0.0, le=10.0)
     arc_step_deg: float = Field(15.0, ge=1.0, le=45.0)

@@ -10,7 +10,8 @@ import pytest
 import shapely
 
 from pipeline.config import default_config
-from pipeline.predict import disc_points, largest_std, predict, sector_points
+from pipeline.features import feature_index
+from pipeline.predict import disc_points, largest_std, near_reversal_flags, predict, sector_points
 from pipeline.types import PredictionMode, TrackStatus
 from properties.prediction_cases import classification, features_for, tracks_of
 
@@ -83,6 +84,33 @@ def test_modes_follow_class_confidence_and_flag(
     assert result.near_reversal.tolist() == [
         m in (PredictionMode.STOP, PredictionMode.REVERSE) for m in modes
     ]
+
+
+@pytest.mark.parametrize(
+    ("name", "speed", "since", "modes"),
+    [
+        # A truck called moving or stationary that stopped 0.5 s ago: near reversal.
+        ("forklift_moving", 0.1, 0.5, [PredictionMode.STOP, PredictionMode.REVERSE]),
+        ("forklift_stationary", 0.0, 1.0, [PredictionMode.STOP, PredictionMode.REVERSE]),
+        ("forklift_stationary", 0.0, 1.01, [PredictionMode.FOOTPRINT]),  # longer ago
+        ("forklift_stationary", 0.0, math.nan, [PredictionMode.FOOTPRINT]),  # never moved
+        ("forklift_moving", 0.3, 0.0, [PredictionMode.CONE]),  # still at speed
+        ("cart", 0.0, 0.2, [PredictionMode.FOOTPRINT]),  # forklift classes only
+    ],
+)
+def test_a_forklift_that_just_stopped_is_near_reversal_whatever_its_state(
+    name: str, speed: float, since: float, modes: list[PredictionMode]
+) -> None:
+    config = default_config()
+    tracks = _one(speed)
+    feats = features_for(tracks, False)
+    values = feats.values.copy()
+    values[:, feature_index("time_since_moving_s")] = since
+    feats = replace(feats, values=values)
+    flags = near_reversal_flags(feats, config.predict)
+    assert flags.tolist() == [speed < 0.3 and since <= 1.0]
+    result = predict(tracks, feats, classification(tracks, name, 0.9), config)
+    assert [PredictionMode(int(m)) for m in result.mode] == modes
 
 
 def test_cone_reverse_and_footprint_regions() -> None:
