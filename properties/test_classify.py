@@ -256,7 +256,7 @@ def test_heldout_accuracy_against_the_published_figures(
         ]
         + [["total", int(smaller.sum()), f"{smaller.sum() / max(int(truly_near.sum()), 1):.2%}"]],
         caption=f"margin below the near-reversal tier's {top} m; rows misclassified with low "
-        "confidence or as a forklift with the near-reversal feature keep the largest margin",
+        "confidence or as a forklift whose kinematics say near reversal keep the largest margin",
     )
     person = names.index("person")
     evidence.counts(
