@@ -208,7 +208,7 @@ class TreeEnsemble:
                         tree.default_left[inner[sel]],
                     )
                 )
-        self._thresholds: list[F32] = []
+        thresholds: list[F32] = []
         tables: list[U64] = []
         for f in range(n_feat):
             if per_feature[f]:
@@ -230,17 +230,17 @@ class TreeEnsemble:
             table[:-1] = np.bitwise_and.accumulate(table[:-1], axis=0)
             table[-1] = _ALL
             np.bitwise_and.at(table[-1], tt[~dl], mk[~dl])
-            self._thresholds.append(uniq)
+            thresholds.append(uniq)
             tables.append(table)
         self._stacked = np.concatenate(tables, axis=0)
         first_row = np.cumsum([0] + [t.shape[0] for t in tables])[:-1]
-        n_thr = np.array([t.shape[0] for t in self._thresholds], dtype=np.intp)
+        n_thr = np.array([t.shape[0] for t in thresholds], dtype=np.intp)
         self._first_row = first_row.astype(np.intp)
         self._nan_row = (first_row + n_thr + 1).astype(np.intp)
         self._key_start = (np.cumsum(n_thr) - n_thr).astype(np.intp)
         self._feature_key = np.left_shift(np.arange(n_feat, dtype=np.uint64), np.uint64(32))
         self._keys = np.concatenate(
-            [self._feature_key[f] | _sortable(th) for f, th in enumerate(self._thresholds)]
+            [self._feature_key[f] | _sortable(th) for f, th in enumerate(thresholds)]
             + [np.zeros(0, dtype=np.uint64)]
         )
         self._leaf_flat = leaf_table.reshape(-1)
