@@ -1,9 +1,12 @@
 """Campaign: the whole perception chain on simulator runs, envelopes against the future (SR-PRED-1).
 
 Each scan goes through clustering, tracking (world frame), features, the configured classifier,
-prediction and envelopes. For every track that follows a simulated object, the object's LiDAR
-returns during the next ``predict.horizon_s`` (the surfaces the robot will see) are checked
-against that track's envelopes (all its modes) built at the earlier scan. Reported, not
+prediction and envelopes. For every simulated object followed by one or more tracks, the
+object's LiDAR returns during the next ``predict.horizon_s`` (the surfaces the robot will see)
+are checked against the union of the envelopes (all modes) of the tracks that followed it at the
+earlier scan: the costmap holds all of them, and a body the clustering splits (a dolly train's
+trailers, a forklift's tines apart from its mast) is covered by its parts' envelopes together,
+not by any one part's. Reported, not
 asserted: outside the property's assumptions (a reversal faster than the configured 0.6 m/s,
 which the simulator's forklifts do at up to 0.9 m/s; a body seen from one side, so its box
 underestimates it; a track still converging) a return may fall outside, and the campaign
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict, deque
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -26,7 +30,7 @@ from pipeline.classify_data import Cycle, RunSpec, perceive
 from pipeline.config import SafecaseConfig
 from pipeline.predict import predict
 from pipeline.sim.truth import CLASS_NAMES
-from pipeline.types import PredictionMode
+from pipeline.types import Envelopes, PredictionMode
 from properties.oracles.geometry import shapely_polygons
 from safety.costmap import CostmapBuilder
 from safety.envelope import EnvelopeBuilder
@@ -65,6 +69,39 @@ def _returns_world(cycle: Cycle) -> dict[int, np.ndarray]:
     }
 
 
+@dataclass(frozen=True, slots=True)
+class _Followed:
+    """A simulated object at one scan: its true class, the prediction modes of the tracks that
+    followed it, the union of their envelopes (world frame) and how many tracks they were."""
+
+    object_id: int
+    label: str
+    modes: str
+    union: shapely.Geometry
+    n_tracks: int
+
+
+def _followed_objects(cycle: Cycle, env: Envelopes) -> list[_Followed]:
+    """Group one scan's envelopes by the simulated object each track follows."""
+    shapes = shapely_polygons(env.polygons)
+    rows_of: defaultdict[int, list[np.ndarray]] = defaultdict(list)
+    label_of: dict[int, int] = {}
+    for i, tid in enumerate(cycle.tracks.track_id):
+        obj = int(cycle.object_of[i])
+        rows = np.flatnonzero(env.track_id == tid)
+        if obj < 0 or not rows.size or cycle.label[i] < 0:
+            continue
+        rows_of[obj].append(rows)
+        label_of[obj] = int(cycle.label[i])  # the object's class: alike for all its tracks
+    out = []
+    for obj, parts in rows_of.items():
+        rows = np.concatenate(parts)
+        modes = "+".join(sorted({PredictionMode(int(m)).name for m in env.mode[rows]}))
+        union = shapely.union_all(shapes[rows]).buffer(1e-9)
+        out.append(_Followed(obj, CLASS_NAMES[label_of[obj]], modes, union, len(parts)))
+    return out
+
+
 @pytest.mark.requirement(
     "SR-PRED-1", kind="campaign", code=["pipeline/predict.py", "safety/envelope.py"]
 )
@@ -85,18 +122,21 @@ def test_future_returns_fall_inside_the_envelopes(
     }
     inside: defaultdict[tuple[str, str], int] = defaultdict(int)
     total: defaultdict[tuple[str, str], int] = defaultdict(int)
+    tracks_x_returns: defaultdict[tuple[str, str], int] = defaultdict(int)
     for spec in runs:
-        window: deque[list[tuple[int, str, str, object]]] = deque(maxlen=steps)
+        window: deque[list[_Followed]] = deque(maxlen=steps)
         for cycle in perceive(config, spec, {}):
             returns = _returns_world(cycle)
             for past in window:  # envelopes of earlier scans within the horizon
-                for obj, label, mode, shape in past:
-                    pts = returns.get(obj)
+                for followed in past:
+                    pts = returns.get(followed.object_id)
                     if pts is None or not len(pts):
                         continue
-                    hit = shapely.intersects_xy(shape, pts[:, 0], pts[:, 1])
-                    inside[(label, mode)] += int(hit.sum())
-                    total[(label, mode)] += int(hit.shape[0])
+                    hit = shapely.intersects_xy(followed.union, pts[:, 0], pts[:, 1])
+                    key = (followed.label, followed.modes)
+                    inside[key] += int(hit.sum())
+                    total[key] += int(hit.shape[0])
+                    tracks_x_returns[key] += followed.n_tracks * int(hit.shape[0])
             t0 = time.perf_counter()
             classification = classifier.classify(cycle.features)
             t1 = time.perf_counter()
@@ -110,28 +150,34 @@ def test_future_returns_fall_inside_the_envelopes(
             for stage, dt in zip(stage_s, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
                 stage_s[stage].append(dt)
             env = builder.build(pred, classifier.class_names)  # world frame, for the check
-            shapes = shapely_polygons(env.polygons)
-            entry = []
-            for i, tid in enumerate(cycle.tracks.track_id):
-                obj = int(cycle.object_of[i])
-                rows = np.flatnonzero(env.track_id == tid)
-                if obj < 0 or not rows.size or cycle.label[i] < 0:
-                    continue
-                mode = "+".join(sorted({PredictionMode(int(m)).name for m in env.mode[rows]}))
-                union = shapely.union_all(shapes[rows]).buffer(1e-9)
-                entry.append((obj, CLASS_NAMES[int(cycle.label[i])], mode, union))
-            window.append(entry)
+            window.append(_followed_objects(cycle, env))
     table = []
     for key in sorted(total, key=lambda k: -total[k]):
         label, mode = key
-        table.append([label, mode, total[key], f"{inside[key] / total[key]:.1%}"])
+        table.append(
+            [
+                label,
+                mode,
+                total[key],
+                f"{inside[key] / total[key]:.1%}",
+                f"{tracks_x_returns[key] / total[key]:.2f}",
+            ]
+        )
     all_in, all_n = sum(inside.values()), sum(total.values())
     evidence.table(
         "future LiDAR returns inside the envelopes built up to 1.5 s earlier",
-        ["true class then", "prediction mode", "returns checked", "inside"],
+        [
+            "true class then",
+            "prediction modes",
+            "returns checked",
+            "inside",
+            "tracks on the object",
+        ],
         table,
         caption=f"{len(runs)} simulator runs ({active_profile()} profile); overall "
-        f"{all_in / max(all_n, 1):.2%} of {all_n} returns inside",
+        f"{all_in / max(all_n, 1):.2%} of {all_n} returns inside the union of the envelopes of "
+        "the tracks that followed the object (tracks on the object: mean over the returns "
+        "checked; above 1 where the clustering split the body)",
     )
     evidence.counts("future returns", {"checked": all_n, "inside": all_in})
     for stage, values in stage_s.items():
