@@ -2,9 +2,11 @@
 
 What it does, in order:
 
-1. Runs the data plan (:func:`data_plan`): every named scenario, the randomised encounter
-   generator and the reversal drills (:func:`pipeline.classify_data.reversal_drill`), each with
-   its own seeds, through the run-time perception path, and labels the rows from the ground
+1. Runs the data plan (:func:`pipeline.classify_plan.data_plan`): every named scenario, the
+   randomised encounter generator and the reversal drills
+   (:func:`pipeline.classify_data.reversal_drill`), each with its own seeds, through the
+   run-time perception path (``--cache`` keeps the rows by block of runs, so a grown plan
+   simulates only its new blocks), and labels the rows from the ground
    truth (:mod:`pipeline.classify_data`). The held-out test plan uses seeds from
    :data:`TEST_SEED_BASE` on, never seen in training.
 2. Keeps a fixed share (``--static-keep``) of the plentiful ``static`` rows of the training set
@@ -27,9 +29,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from contextlib import nullcontext
 from importlib import metadata
 from pathlib import Path
 from typing import Annotated, Any
@@ -47,116 +46,23 @@ from rich.progress import (
 )
 
 from pipeline.classify import MODEL_CLASSES, PACKAGED_MODEL, card_path
-from pipeline.classify_data import (
-    DRILL,
-    SIM_TO_MODEL_CLASS,
-    Rows,
-    RunSpec,
-    load_rows,
-    run_rows,
-    save_rows,
-)
+from pipeline.classify_data import SIM_TO_MODEL_CLASS, Rows, RunSpec, save_rows
+from pipeline.classify_plan import cached_rows, data_plan
 from pipeline.config import ClassifySection, SafecaseConfig, config_hash, load_config
 from pipeline.errors import ConfigError
 from pipeline.features import FEATURE_NAMES
-from pipeline.sim.scenarios import SCENARIOS
 from pipeline.sim.truth import CLASS_NAMES
 
 __all__ = [
     "TEST_SEED_BASE",
     "accuracy_by_class",
     "class_weights",
-    "data_plan",
-    "gather_rows",
     "train_booster",
     "train_command",
     "write_model",
 ]
 
 TEST_SEED_BASE = 100_000
-# The configuration sections that shape the rows (not the classifier's training parameters).
-ROW_SECTIONS = ("scan", "cluster", "track", "predict", "sim", "stopping")
-NAMED = tuple(n for n in SCENARIOS if n != "random_encounter")
-
-
-def data_plan(
-    named_seeds: int, encounter_seeds: int, drill_seeds: int, duration_s: float, first_seed: int
-) -> list[RunSpec]:
-    """Runs of the plan: each named scenario, ``random_encounter`` and the drill with seeds
-    ``first_seed .. first_seed + n - 1``."""
-    plan = [RunSpec(name, first_seed + s, duration_s) for name in NAMED for s in range(named_seeds)]
-    plan += [
-        RunSpec("random_encounter", first_seed + s, duration_s) for s in range(encounter_seeds)
-    ]
-    plan += [RunSpec(DRILL, first_seed + s, duration_s) for s in range(drill_seeds)]
-    return plan
-
-
-def _run(args: tuple[SafecaseConfig, RunSpec, int]) -> Rows:
-    return run_rows(*args)
-
-
-def gather_rows(
-    config: SafecaseConfig,
-    plan: Sequence[RunSpec],
-    workers: int = 1,
-    progress: Callable[[int], None] | None = None,
-) -> Rows:
-    """Rows of every run of ``plan``, in plan order whatever ``workers`` is (deterministic).
-
-    ``progress`` is called with the number of runs done after each run.
-    """
-    jobs = [(config, spec, i) for i, spec in enumerate(plan)]
-    parts: list[Rows] = []
-    with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
-        for part in pool.map(_run, jobs, chunksize=1) if pool else map(_run, jobs):
-            parts.append(part)
-            if progress is not None:
-                progress(len(parts))
-    dropped: dict[str, int] = {}
-    for part in parts:
-        for key, value in part.dropped.items():
-            dropped[key] = dropped.get(key, 0) + value
-    width = len(FEATURE_NAMES)
-    return Rows(
-        features=np.concatenate([p.features for p in parts]) if parts else np.zeros((0, width)),
-        label=np.concatenate([p.label for p in parts]) if parts else np.zeros(0, np.int64),
-        run=np.concatenate([p.run for p in parts]) if parts else np.zeros(0, np.int64),
-        stamp_s=np.concatenate([p.stamp_s for p in parts]) if parts else np.zeros(0),
-        track_id=np.concatenate([p.track_id for p in parts]) if parts else np.zeros(0, np.int64),
-        object_id=np.concatenate([p.object_id for p in parts]) if parts else np.zeros(0, np.int64),
-        range_m=np.concatenate([p.range_m for p in parts]) if parts else np.zeros(0),
-        runs=list(plan),
-        dropped=dropped,
-    )
-
-
-def cached_rows(
-    config: SafecaseConfig,
-    plan: Sequence[RunSpec],
-    workers: int,
-    cache: Path | None,
-    progress: Callable[[int], None] | None = None,
-) -> Rows:
-    """:func:`gather_rows`, reusing an earlier result for the same plan and configuration."""
-    if cache is None:
-        return gather_rows(config, plan, workers, progress)
-    dumped = config.model_dump(mode="json")
-    sections = {k: dumped[k] for k in ROW_SECTIONS}
-    key = json.dumps(
-        [sections, list(FEATURE_NAMES), [list(vars_of(r)) for r in plan]], sort_keys=True
-    )
-    path = cache / f"rows-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
-    if path.exists():
-        return load_rows(path)
-    rows = gather_rows(config, plan, workers, progress)
-    save_rows(path, rows)
-    return load_rows(path)  # the same float32 rounding whether or not it came from the cache
-
-
-def vars_of(spec: RunSpec) -> tuple[str, int, float]:
-    """A run's identity: scenario, seed, duration."""
-    return (spec.scenario, spec.seed, spec.duration_s)
 
 
 def thin_static(rows: Rows, keep: float, seed: int) -> Rows:

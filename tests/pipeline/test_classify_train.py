@@ -11,7 +11,8 @@ from typer.testing import CliRunner
 
 from pipeline.classify import Classifier, card_path, file_sha256
 from pipeline.classify_data import load_rows
-from pipeline.classify_train import class_weights, data_plan
+from pipeline.classify_plan import data_plan
+from pipeline.classify_train import class_weights
 from safety.cli import app
 
 TINY = [
