@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 from pathlib import Path
@@ -95,15 +95,16 @@ def _gather_parts(
     plan: Sequence[RunSpec],
     workers: int,
     progress: Callable[[int], None] | None,
-) -> list[Rows]:
+) -> Iterator[Rows]:
+    """Each run's rows, in plan order, as soon as that run (and every one before it) is done."""
     jobs = [(config, spec) for spec in plan]
-    parts: list[Rows] = []
     with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
-        for part in pool.map(_run, jobs, chunksize=1) if pool else map(_run, jobs):
-            parts.append(part)
+        for done, part in enumerate(
+            pool.map(_run, jobs, chunksize=1) if pool else map(_run, jobs), start=1
+        ):
             if progress is not None:
-                progress(len(parts))
-    return parts
+                progress(done)
+            yield part
 
 
 def gather_rows(
@@ -116,7 +117,7 @@ def gather_rows(
 
     ``progress`` is called with the number of runs done after each run.
     """
-    return concat_rows(_gather_parts(config, plan, workers, progress))
+    return concat_rows(list(_gather_parts(config, plan, workers, progress)))
 
 
 def plan_blocks(plan: Sequence[RunSpec], block_runs: int = BLOCK_RUNS) -> list[list[RunSpec]]:
@@ -157,11 +158,13 @@ def cached_rows(
     blocks = plan_blocks(plan, block_runs)
     paths = [_block_path(config, cache, block) for block in blocks]
     missing = [i for i, path in enumerate(paths) if not path.exists()]
-    parts = _gather_parts(config, [r for i in missing for r in blocks[i]], workers, progress)
-    start = 0
-    for i in missing:
-        n = len(blocks[i])
-        save_rows(paths[i], concat_rows(parts[start : start + n]))
-        start += n
+    # Blocks are stored as they complete, so an interrupted run keeps what it simulated.
+    todo = iter(missing)
+    block, done = next(todo, -1), []
+    for part in _gather_parts(config, [r for i in missing for r in blocks[i]], workers, progress):
+        done.append(part)
+        if len(done) == len(blocks[block]):
+            save_rows(paths[block], concat_rows(done))
+            block, done = next(todo, -1), []
     # Every block is read back from its file: the same float32 rounding either way.
     return concat_rows([load_rows(path) for path in paths])

@@ -60,3 +60,25 @@ def test_a_grown_plan_simulates_only_its_new_blocks(
     again: list[int] = []
     cached_rows(other, first, 1, tmp_path, again.append, block_runs=1)
     assert again == [1, 2]
+
+
+class _InterruptedError(Exception):
+    pass
+
+
+def test_an_interrupted_plan_keeps_the_blocks_it_finished(
+    safecase_config: SafecaseConfig, tmp_path: Path
+) -> None:
+    plan = [RunSpec(DRILL, s, 3.0) for s in (5, 6, 7)]
+
+    def interrupt_at_second_run(done: int) -> None:
+        if done == 2:
+            raise _InterruptedError
+
+    with pytest.raises(_InterruptedError):
+        cached_rows(safecase_config, plan, 1, tmp_path, interrupt_at_second_run, block_runs=1)
+    assert len(list(tmp_path.glob("rows-*.npz"))) == 1
+    simulated: list[int] = []
+    rows = cached_rows(safecase_config, plan, 1, tmp_path, simulated.append, block_runs=1)
+    assert simulated == [1, 2]
+    assert rows.runs == plan
