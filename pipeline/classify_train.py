@@ -189,8 +189,8 @@ def train_command(
         PACKAGED_MODEL.parent
     ),
     named_seeds: Annotated[int, typer.Option(min=0, help="Seeds per named scenario.")] = 30,
-    encounter_seeds: Annotated[int, typer.Option(min=0, help="random_encounter seeds.")] = 600,
-    drill_seeds: Annotated[int, typer.Option(min=0, help="Reversal drill seeds.")] = 450,
+    encounter_seeds: Annotated[int, typer.Option(min=0, help="random_encounter seeds.")] = 2400,
+    drill_seeds: Annotated[int, typer.Option(min=0, help="Reversal drill seeds.")] = 1800,
     test_named_seeds: Annotated[int, typer.Option(min=0, help="Held-out seeds per named.")] = 5,
     test_encounter_seeds: Annotated[int, typer.Option(min=0)] = 80,
     test_drill_seeds: Annotated[int, typer.Option(min=0)] = 60,
