@@ -152,16 +152,22 @@ def cached_rows(
     block_runs: int = BLOCK_RUNS,
 ) -> Rows:
     """:func:`gather_rows`, taking every block of ``plan`` found in ``cache`` from there and
-    simulating (and storing) only the others; ``progress`` counts the runs simulated."""
+    simulating (and storing) only the others.
+
+    ``progress`` is called after each simulated run with the number of the plan's runs ready,
+    the cached ones included (so a bar over ``len(plan)`` ends full).
+    """
     if cache is None:
         return gather_rows(config, plan, workers, progress)
     blocks = plan_blocks(plan, block_runs)
     paths = [_block_path(config, cache, block) for block in blocks]
     missing = [i for i, path in enumerate(paths) if not path.exists()]
     # Blocks are stored as they complete, so an interrupted run keeps what it simulated.
+    cached = len(plan) - sum(len(blocks[i]) for i in missing)
+    ready = None if progress is None else (lambda n: progress(cached + n))
     todo = iter(missing)
     block, done = next(todo, -1), []
-    for part in _gather_parts(config, [r for i in missing for r in blocks[i]], workers, progress):
+    for part in _gather_parts(config, [r for i in missing for r in blocks[i]], workers, ready):
         done.append(part)
         if len(done) == len(blocks[block]):
             save_rows(paths[block], concat_rows(done))

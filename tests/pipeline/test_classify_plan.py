@@ -40,7 +40,7 @@ def test_a_grown_plan_simulates_only_its_new_blocks(
     simulated: list[list[int]] = [[], []]
     a = cached_rows(safecase_config, first, 1, tmp_path, simulated[0].append, block_runs=1)
     b = cached_rows(safecase_config, grown, 1, tmp_path, simulated[1].append, block_runs=1)
-    assert simulated == [[1, 2], [1]]
+    assert simulated == [[1, 2], [3]]  # progress: runs ready, cached ones included
     assert len(list(tmp_path.glob("rows-*.npz"))) == 3
     fresh = gather_rows(safecase_config, grown)
     assert b.runs == grown
@@ -60,6 +60,7 @@ def test_a_grown_plan_simulates_only_its_new_blocks(
     again: list[int] = []
     cached_rows(other, first, 1, tmp_path, again.append, block_runs=1)
     assert again == [1, 2]
+    assert len(list(tmp_path.glob("rows-*.npz"))) == 5
 
 
 class _InterruptedError(Exception):
@@ -80,5 +81,5 @@ def test_an_interrupted_plan_keeps_the_blocks_it_finished(
     assert len(list(tmp_path.glob("rows-*.npz"))) == 1
     simulated: list[int] = []
     rows = cached_rows(safecase_config, plan, 1, tmp_path, simulated.append, block_runs=1)
-    assert simulated == [1, 2]
+    assert simulated == [2, 3]
     assert rows.runs == plan
