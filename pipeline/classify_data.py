@@ -74,6 +74,7 @@ __all__ = [
     "reversal_drill",
     "run_rows",
     "save_rows",
+    "simulation_of",
 ]
 
 DRILL = "reversal_drill"
@@ -245,7 +246,8 @@ class Rows:
         )
 
 
-def _simulation(config: SafecaseConfig, spec: RunSpec) -> Simulation:
+def simulation_of(config: SafecaseConfig, spec: RunSpec) -> Simulation:
+    """The simulation a run spec names (the drill or a named scenario), not yet run."""
     if spec.scenario == DRILL:
         rng = np.random.default_rng(np.random.SeedSequence(spec.seed).spawn(3)[0])
         built = reversal_drill(rng, spec.duration_s)
@@ -302,7 +304,7 @@ def perceive(config: SafecaseConfig, spec: RunSpec, dropped: dict[str, int]) -> 
     ``dropped`` accumulates rows left unlabelled, by reason (module docstring).
     """
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed).spawn(4)[3])
-    sim = _simulation(config, spec)
+    sim = simulation_of(config, spec)
     policy = GapKeeper(float(rng.uniform(0.7, 1.0)), float(rng.uniform(1.0, 2.5)))
     tracker = Tracker(config.track)
     remembered: dict[int, int] = {}  # track id -> object id of its last labelled update

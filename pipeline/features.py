@@ -42,6 +42,19 @@ time_since_moving_s         seconds from the newest history entry at or above
                             when no entry of the history is that fast
 ==========================  ================================================================
 
+Two group features close the row (:data:`GROUP_FEATURE_NAMES`). A track's *partners* are the
+other tracks of the cycle whose position is within :data:`GROUP_RADIUS_M` of its own and whose
+velocity differs from its own by at most :data:`GROUP_SPEED_MPS`: parts that move together, as
+the fork tines and the mast of one truck do when the clustering cuts them apart. (Both bounds
+are part of the feature's definition, not configuration: the model is trained with them.)
+
+==========================  ================================================================
+group_length_m              the largest ``max_length_m`` among the track's partners [m]; 0
+                            when it has none
+group_gap_m                 distance from the track's position to its nearest partner's [m];
+                            NaN when it has none
+==========================  ================================================================
+
 Frames. The velocity must be the object's own (ground) velocity, so the tracker should run in
 an odometry or map frame: :func:`detections_in_frame` moves the clusters' centroids there from
 the scanner frame with the scanner's pose. ``robot_xy_m`` is then the robot's position in that
@@ -61,6 +74,9 @@ from pipeline.types import Clusters, FloatArray, TrackFeatures, Tracks
 
 __all__ = [
     "FEATURE_NAMES",
+    "GROUP_FEATURE_NAMES",
+    "GROUP_RADIUS_M",
+    "GROUP_SPEED_MPS",
     "MEMORY_FEATURE_NAMES",
     "N_FEATURES",
     "SOURCE_FEATURE_NAMES",
@@ -88,7 +104,14 @@ MEMORY_FEATURE_NAMES: tuple[str, ...] = (
     "peak_speed_mps",
     "time_since_moving_s",
 )
-FEATURE_NAMES: tuple[str, ...] = SOURCE_FEATURE_NAMES + MEMORY_FEATURE_NAMES
+GROUP_FEATURE_NAMES: tuple[str, ...] = ("group_length_m", "group_gap_m")
+FEATURE_NAMES: tuple[str, ...] = SOURCE_FEATURE_NAMES + MEMORY_FEATURE_NAMES + GROUP_FEATURE_NAMES
+GROUP_RADIUS_M = 2.5
+"""Largest distance between two partners' positions [m]: a fork tip is ~2 m from the centre of
+its counterbalance truck's body (3.45 m overall)."""
+GROUP_SPEED_MPS = 0.5
+"""Largest difference between two partners' velocities [m/s], about twice the spread of the
+tracker's velocity estimates for parts of one truck."""
 N_FEATURES = len(FEATURE_NAMES)
 
 
@@ -164,6 +187,7 @@ def track_features(
     out[:, 11] = tracks.max_width_m
     out[:, 12] = tracks.max_length_m
     out[:, 13:15] = _speed_memory(tracks, predict.near_reversal_speed_mps)
+    out[:, 15:17] = _group(tracks)
     return TrackFeatures(
         stamp_s=tracks.stamp_s, track_id=tracks.track_id, status=tracks.status, values=out
     )
@@ -182,4 +206,21 @@ def _speed_memory(tracks: Tracks, moving_mps: float) -> FloatArray:
     last_moving = np.where(moving, stamp, -np.inf)[seen].max(axis=1)
     newest = np.where(have, stamp, -np.inf)[seen].max(axis=1)
     out[seen, 1] = newest - last_moving
+    return out
+
+
+def _group(tracks: Tracks) -> FloatArray:
+    """Per track: the largest ``max_length_m`` of its partners (0 when none) and the distance to
+    its nearest partner (NaN when none), shape (n, 2) (module docstring)."""
+    x, y, vx, vy = (tracks.state[:, k] for k in range(4))
+    gap = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    partner = (
+        (gap <= GROUP_RADIUS_M)
+        & (np.hypot(vx[:, None] - vx[None, :], vy[:, None] - vy[None, :]) <= GROUP_SPEED_MPS)
+        & ~np.eye(tracks.n, dtype=bool)
+    )
+    out: FloatArray = np.full((tracks.n, 2), np.nan)
+    out[:, 0] = np.where(partner, tracks.max_length_m[None, :], 0.0).max(axis=1, initial=0.0)
+    some = partner.any(axis=1)
+    out[some, 1] = np.where(partner, gap, np.inf)[some].min(axis=1, initial=np.inf)
     return out

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -12,6 +12,9 @@ from pipeline.cluster import cluster_scan
 from pipeline.config import default_config
 from pipeline.features import (
     FEATURE_NAMES,
+    GROUP_FEATURE_NAMES,
+    GROUP_RADIUS_M,
+    GROUP_SPEED_MPS,
     MEMORY_FEATURE_NAMES,
     SOURCE_FEATURE_NAMES,
     detections_in_frame,
@@ -19,7 +22,7 @@ from pipeline.features import (
     track_features,
 )
 from pipeline.track.tracker import Tracker
-from pipeline.types import Scan
+from pipeline.types import Scan, Tracks
 from properties.prediction_cases import tracks_of
 
 
@@ -39,7 +42,8 @@ def _scan_of_box(stamp: float, cx: float, cy: float, half: float = 0.3) -> Scan:
 def test_names_and_index() -> None:
     assert len(SOURCE_FEATURE_NAMES) == 10
     assert FEATURE_NAMES[:10] == SOURCE_FEATURE_NAMES
-    assert FEATURE_NAMES[10:] == MEMORY_FEATURE_NAMES
+    assert FEATURE_NAMES[10:15] == MEMORY_FEATURE_NAMES
+    assert FEATURE_NAMES[15:] == GROUP_FEATURE_NAMES
     assert feature_index("is_near_reversal") == 9
     with pytest.raises(KeyError, match="unknown feature 'speed'"):
         feature_index("speed")
@@ -136,3 +140,67 @@ def test_detections_move_into_the_frame() -> None:
     assert moved.width_m[0] == clusters.width_m[0]
     with pytest.raises(ValueError, match="must be finite"):
         detections_in_frame(clusters, (math.nan, 0.0, 0.0))
+
+
+def _stacked(parts: list[Tracks]) -> Tracks:
+    """One snapshot holding the tracks of ``parts`` (each a one-track snapshot), ids 0, 1, ..."""
+    joined = {
+        f.name: np.concatenate([getattr(p, f.name) for p in parts])
+        for f in fields(Tracks)
+        if f.name != "stamp_s"
+    }
+    joined["track_id"] = np.arange(len(parts))
+    return Tracks(stamp_s=parts[0].stamp_s, **joined)
+
+
+def _part(x: float, vx: float, max_length_m: float) -> Tracks:
+    one = tracks_of(np.array([x, 0.0]), np.array([vx, 0.0]), 0.1, 0.1, 0.1, 0.3, np.zeros((1, 2)))
+    return replace(one, max_length_m=np.array([max_length_m]))
+
+
+def test_group_features_join_parts_that_move_together() -> None:
+    config = default_config()
+    # A tine tip at x = 0 and its truck's body 2 m ahead moving with it; a wall 2.4 m behind
+    # standing still; a cart 2.6 m ahead moving with the tine (too far to be a partner).
+    tracks = _stacked(
+        [_part(0.0, 1.0, 0.3), _part(2.0, 1.2, 2.3), _part(-2.4, 0.0, 6.0), _part(2.6, 1.0, 0.9)]
+    )
+    values = track_features(tracks, None, config.predict).values
+    length, gap = feature_index("group_length_m"), feature_index("group_gap_m")
+    assert values[0, length] == pytest.approx(2.3)
+    assert values[0, gap] == pytest.approx(2.0)
+    # The body's partners: the tine (2 m) and the cart (0.6 m), not the wall (4.4 m, too slow).
+    assert values[1, length] == pytest.approx(0.9)
+    assert values[1, gap] == pytest.approx(0.6)
+    # The wall has no partner at all: length 0, gap missing (NaN), not a made-up distance.
+    assert values[2, length] == 0.0
+    assert math.isnan(values[2, gap])
+
+
+def test_group_bounds_are_inclusive() -> None:
+    config = default_config()
+    edge = _stacked([_part(0.0, 0.0, 1.0), _part(GROUP_RADIUS_M, GROUP_SPEED_MPS, 1.5)])
+    values = track_features(edge, None, config.predict).values
+    assert values[0, feature_index("group_length_m")] == pytest.approx(1.5)
+    apart = _stacked([_part(0.0, 0.0, 1.0), _part(GROUP_RADIUS_M + 0.01, 0.0, 1.5)])
+    assert (
+        track_features(apart, None, config.predict).values[0, feature_index("group_length_m")]
+        == 0.0
+    )
+    fast = _stacked([_part(0.0, 0.0, 1.0), _part(1.0, GROUP_SPEED_MPS + 0.01, 1.5)])
+    assert (
+        track_features(fast, None, config.predict).values[0, feature_index("group_length_m")] == 0.0
+    )
+
+
+def test_no_tracks_no_rows() -> None:
+    config = default_config()
+    empty = replace(
+        _part(0.0, 0.0, 1.0),
+        **{
+            f.name: getattr(_part(0.0, 0.0, 1.0), f.name)[:0]
+            for f in fields(Tracks)
+            if f.name != "stamp_s"
+        },
+    )
+    assert track_features(empty, None, config.predict).values.shape == (0, len(FEATURE_NAMES))
