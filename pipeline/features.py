@@ -107,11 +107,12 @@ MEMORY_FEATURE_NAMES: tuple[str, ...] = (
 GROUP_FEATURE_NAMES: tuple[str, ...] = ("group_length_m", "group_gap_m")
 FEATURE_NAMES: tuple[str, ...] = SOURCE_FEATURE_NAMES + MEMORY_FEATURE_NAMES + GROUP_FEATURE_NAMES
 GROUP_RADIUS_M = 2.5
-"""Largest distance between two partners' positions [m]: a fork tip is ~2 m from the centre of
-its counterbalance truck's body (3.45 m overall)."""
+"""Largest distance between two partners' positions [m]. The simulated counterbalance truck's
+tine tips are 1.15 m ahead of its mast and 3.45 m ahead of its rear: 2.5 m joins a tip to the
+mast and the body's near faces, not to a truck in the next aisle (3.5 m wide)."""
 GROUP_SPEED_MPS = 0.5
-"""Largest difference between two partners' velocities [m/s], about twice the spread of the
-tracker's velocity estimates for parts of one truck."""
+"""Largest difference between two partners' velocities [m/s]. Set, like the radius, before the
+dev run that chose the two columns (README, classification, session 15); neither was tuned."""
 N_FEATURES = len(FEATURE_NAMES)
 
 
