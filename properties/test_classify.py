@@ -25,7 +25,7 @@ from pipeline.config import SafecaseConfig, overridden
 from pipeline.features import N_FEATURES, feature_index
 from pipeline.predict import near_reversal_flags, track_modes
 from pipeline.types import Classification, FloatArray, TrackFeatures
-from properties.heldout_roles import accuracy_by_role, row_roles
+from properties.heldout_roles import accuracy_by_role, recall_cell, row_roles
 from properties.oracles.classify import (
     booster,
     model_thresholds,
@@ -172,12 +172,11 @@ def _accuracy_in_bands(
     """Per published class, the recall among rows whose ``value`` falls in each band."""
     out: list[list[object]] = []
     for name in PUBLISHED:
-        mine = label == names.index(name)
+        code = names.index(name)
+        mine = label == code
         cells: list[object] = [name]
         for lo, hi in bands:
-            sel = mine & (value >= lo) & (value < hi)
-            n = int(sel.sum())
-            cells.append(f"{(predicted[sel] == names.index(name)).mean():.1%} of {n}" if n else "-")
+            cells.append(recall_cell(predicted, mine & (value >= lo) & (value < hi), code))
         out.append(cells)
     return out
 
