@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.cluster_ends import cluster_ends
 from pipeline.cluster_shape import cluster_shapes
 from pipeline.config import ClusterSection, SafecaseConfig
 from pipeline.points import scan_to_points
@@ -184,6 +185,7 @@ def cluster_points(points: ScanPoints, config: ClusterSection) -> Clusters:
     shapes = cluster_shapes(points.x_m, points.y_m, labels, n_kept)
     area = shapes.width_m * shapes.length_m
     n_border = int(np.count_nonzero((raw.labels >= 0) & ~raw.is_core))
+    end_x, end_y, end_occluded = cluster_ends(points, labels, n_kept)
     return Clusters(
         stamp_s=points.stamp_s,
         centroid_x_m=cx,
@@ -206,6 +208,9 @@ def cluster_points(points: ScanPoints, config: ClusterSection) -> Clusters:
             n_noise_points=int(np.count_nonzero(raw.labels < 0)),
             n_border_points=n_border,
         ),
+        end_x_m=end_x,
+        end_y_m=end_y,
+        end_occluded=end_occluded,
     )
 
 

@@ -55,6 +55,26 @@ group_gap_m                 distance from the track's position to its nearest pa
                             NaN when it has none
 ==========================  ================================================================
 
+Six end features follow (:data:`END_FEATURE_NAMES`). A truck seen through a gap between racks,
+or past a nearer object, shows only the part between the occluders: its clipped ends stay at
+the occluders' edges while it moves, so its centroid, and with it the filtered velocity,
+barely moves. The tracker keeps each update's cluster ends and whether a nearer return bounded
+them (:mod:`pipeline.cluster_ends`); these columns read the newest :data:`END_WINDOW` entries of
+that history (NaN with fewer than :data:`END_MIN_ENTRIES` entries that have ends). End speeds
+are least-squares speeds of an end's position over those entries [m/s].
+
+==========================  ================================================================
+ends_occluded               how many ends (0, 1, 2) of this cycle's cluster are occluded; NaN
+                            for a coasting track
+end_speed_max_mps           the faster of the two ends' speeds
+free_end_speed_mps          the faster of the ends that stayed free over the whole window; NaN
+                            when neither did
+end_speed_min_mps           the slower of the two ends' speeds
+end_occluded_share          share of occluded ends over the window, in [0, 1]
+end_mid_speed_mps           speed of the midpoint between the ends (the centroid of a straight
+                            view, measured rather than filtered)
+==========================  ================================================================
+
 Frames. The velocity must be the object's own (ground) velocity, so the tracker should run in
 an odometry or map frame: :func:`detections_in_frame` moves the clusters' centroids there from
 the scanner frame with the scanner's pose. ``robot_xy_m`` is then the robot's position in that
@@ -70,9 +90,12 @@ import numpy as np
 
 from pipeline.config import PredictSection
 from pipeline.track.tracker import Detections
-from pipeline.types import Clusters, FloatArray, TrackFeatures, Tracks
+from pipeline.types import BoolArray, Clusters, FloatArray, TrackFeatures, Tracks
 
 __all__ = [
+    "END_FEATURE_NAMES",
+    "END_MIN_ENTRIES",
+    "END_WINDOW",
     "FEATURE_NAMES",
     "GROUP_FEATURE_NAMES",
     "GROUP_RADIUS_M",
@@ -105,7 +128,17 @@ MEMORY_FEATURE_NAMES: tuple[str, ...] = (
     "time_since_moving_s",
 )
 GROUP_FEATURE_NAMES: tuple[str, ...] = ("group_length_m", "group_gap_m")
-FEATURE_NAMES: tuple[str, ...] = SOURCE_FEATURE_NAMES + MEMORY_FEATURE_NAMES + GROUP_FEATURE_NAMES
+END_FEATURE_NAMES: tuple[str, ...] = (
+    "ends_occluded",
+    "end_speed_max_mps",
+    "free_end_speed_mps",
+    "end_speed_min_mps",
+    "end_occluded_share",
+    "end_mid_speed_mps",
+)
+FEATURE_NAMES: tuple[str, ...] = (
+    SOURCE_FEATURE_NAMES + MEMORY_FEATURE_NAMES + GROUP_FEATURE_NAMES + END_FEATURE_NAMES
+)
 GROUP_RADIUS_M = 2.5
 """Largest distance between two partners' positions [m]. The simulated counterbalance truck's
 tine tips are 1.15 m ahead of its mast and 3.45 m ahead of its rear: 2.5 m joins a tip to the
@@ -113,6 +146,10 @@ mast and the body's near faces, not to a truck in the next aisle (3.5 m wide).""
 GROUP_SPEED_MPS = 0.5
 """Largest difference between two partners' velocities [m/s]. Set, like the radius, before the
 dev run that chose the two columns (README, classification, session 15); neither was tuned."""
+END_WINDOW = 10
+"""History entries (updates, newest last) the end features look back over: 1 s at 10 Hz."""
+END_MIN_ENTRIES = 3
+"""Fewest entries with ends in that window for an end speed; fewer give NaN."""
 N_FEATURES = len(FEATURE_NAMES)
 
 
@@ -128,20 +165,24 @@ def detections_in_frame(clusters: Clusters, pose: tuple[float, float, float]) ->
     """The clusters' centroids moved from the scanner frame into a fixed frame (SR-CLS-2).
 
     ``pose`` is the scanner's ``(x_m, y_m, yaw_rad)`` in that frame at the scan's stamp (from
-    odometry at run time, from the simulator's ground truth in training). Box sizes are
-    unchanged by a rigid motion.
+    odometry at run time, from the simulator's ground truth in training); the clusters' ends
+    move with them. Box sizes and occlusion flags are unchanged by a rigid motion.
     """
     x0, y0, yaw = (float(v) for v in pose)
     if not all(math.isfinite(v) for v in (x0, y0, yaw)):
         raise ValueError(f"detections_in_frame: pose {pose!r} must be finite (x_m, y_m, yaw_rad)")
     c, s = math.cos(yaw), math.sin(yaw)
-    x, y = clusters.centroid_x_m, clusters.centroid_y_m
+    x = np.column_stack([clusters.centroid_x_m, clusters.end_x_m])
+    y = np.column_stack([clusters.centroid_y_m, clusters.end_y_m])
+    fx, fy = x0 + c * x - s * y, y0 + s * x + c * y
     return Detections(
         clusters.stamp_s,
-        x0 + c * x - s * y,
-        y0 + s * x + c * y,
+        fx[:, 0],
+        fy[:, 0],
         clusters.width_m,
         clusters.length_m,
+        np.column_stack([fx[:, 1], fy[:, 1], fx[:, 2], fy[:, 2]]),
+        clusters.end_occluded,
     )
 
 
@@ -189,6 +230,7 @@ def track_features(
     out[:, 12] = tracks.max_length_m
     out[:, 13:15] = _speed_memory(tracks, predict.near_reversal_speed_mps)
     out[:, 15:17] = _group(tracks)
+    out[:, 17:23] = _end_motion(tracks)
     return TrackFeatures(
         stamp_s=tracks.stamp_s, track_id=tracks.track_id, status=tracks.status, values=out
     )
@@ -224,4 +266,36 @@ def _group(tracks: Tracks) -> FloatArray:
     out[:, 0] = np.where(partner, tracks.max_length_m[None, :], 0.0).max(axis=1, initial=0.0)
     some = partner.any(axis=1)
     out[some, 1] = np.where(partner, gap, np.inf)[some].min(axis=1, initial=np.inf)
+    return out
+
+
+def _end_motion(tracks: Tracks) -> FloatArray:
+    """Per track, the :data:`END_FEATURE_NAMES` columns, shape (n, 6) (module docstring)."""
+    n = tracks.n
+    out: FloatArray = np.full((n, len(END_FEATURE_NAMES)), np.nan)
+    updated = tracks.detection_index >= 0
+    out[updated, 0] = tracks.history_end_occluded[updated, -1, :].sum(axis=1)
+    w = min(END_WINDOW, tracks.history_t_s.shape[1])
+    t = tracks.history_t_s[:, -w:]
+    xy = tracks.history_end_xy_m[:, -w:, :]
+    occ = tracks.history_end_occluded[:, -w:, :]
+    valid = ~(np.isnan(t) | np.isnan(xy).any(axis=2) | np.isnan(occ).any(axis=2))
+    k = valid.sum(axis=1)
+    kk = np.maximum(k, 1)
+    # Least-squares velocity of each end coordinate over the valid entries.
+    tc = np.where(valid, t - (np.where(valid, t, 0.0).sum(axis=1) / kk)[:, None], 0.0)
+    sxx = (tc * tc).sum(axis=1)
+    mean = np.where(valid[:, :, None], xy, 0.0).sum(axis=1) / kk[:, None]
+    dev = np.where(valid[:, :, None], xy - mean[:, None, :], 0.0)
+    vel = (tc[:, :, None] * dev).sum(axis=1) / np.where(sxx > 0.0, sxx, 1.0)[:, None]
+    speed = np.hypot(vel[:, 0::2], vel[:, 1::2])  # (n, 2): first end, last end
+    ok = k >= END_MIN_ENTRIES
+    out[ok, 1] = speed[ok].max(axis=1)
+    free: BoolArray = ~np.any(valid[:, :, None] & (occ > 0.0), axis=1)
+    some_free = ok & free.any(axis=1)
+    out[some_free, 2] = np.where(free, speed, -np.inf)[some_free].max(axis=1)
+    out[ok, 3] = speed[ok].min(axis=1)
+    out[ok, 4] = np.where(valid[:, :, None], occ, 0.0).sum(axis=(1, 2))[ok] / (2.0 * k[ok])
+    mid = 0.5 * (vel[:, 0:2] + vel[:, 2:4])
+    out[ok, 5] = np.hypot(mid[ok, 0], mid[ok, 1])
     return out

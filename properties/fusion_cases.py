@@ -57,6 +57,8 @@ def make_tracks(
         max_width_m=np.full(n, 0.5),
         max_length_m=np.full(n, 0.8),
         reid_count=np.zeros(n, dtype=np.int64),
+        history_end_xy_m=np.full((n, 15, 4), np.nan),
+        history_end_occluded=np.full((n, 15, 2), np.nan),
     )
 
 

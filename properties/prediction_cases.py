@@ -97,6 +97,8 @@ def tracks_of(
         max_width_m=np.array([width_m]),
         max_length_m=np.array([length_m]),
         reid_count=0 * one,
+        history_end_xy_m=np.full((1, history_len, 4), np.nan),
+        history_end_occluded=np.full((1, history_len, 2), np.nan),
     )
 
 

@@ -60,6 +60,8 @@ class TrackStore:
         self.hist_t = np.full((cap, h), np.nan)
         self.hist_speed = np.full((cap, h), np.nan)
         self.hist_len = np.zeros(cap, dtype=np.int64)
+        self.hist_end = np.full((cap, h, 4), np.nan)
+        self.hist_occ = np.full((cap, h, 2), np.nan)
         self.size_wl = np.full((cap, s, 2), np.nan)
         self.size_len = np.zeros(cap, dtype=np.int64)
         # Largest box width and length seen since birth: a part-view of a large object (a
@@ -87,7 +89,13 @@ class TrackStore:
 
     # -- mutations -------------------------------------------------------------------------
     def create(
-        self, x: FloatArray, p: FloatArray, stamp_s: float, wl_m: FloatArray, det: IntArray
+        self,
+        x: FloatArray,
+        p: FloatArray,
+        stamp_s: float,
+        wl_m: FloatArray,
+        det: IntArray,
+        ends: tuple[FloatArray, FloatArray],
     ) -> IntArray:
         """Put new TENTATIVE tracks in the lowest free slots; returns their slots."""
         k = x.shape[0]
@@ -110,19 +118,33 @@ class TrackStore:
         self.hist_t[slots] = np.nan
         self.hist_speed[slots] = np.nan
         self.hist_len[slots] = 0
+        self.hist_end[slots] = np.nan
+        self.hist_occ[slots] = np.nan
         self.size_wl[slots] = np.nan
         self.size_len[slots] = 0
         self.max_wl[slots] = np.nan
-        self.record(slots, stamp_s, wl_m)
+        self.record(slots, stamp_s, wl_m, *ends)
         return slots
 
-    def record(self, slots: IntArray, stamp_s: float, wl_m: FloatArray) -> None:
-        """Append each slot's posterior centroid, speed and box size to its histories."""
+    def record(
+        self,
+        slots: IntArray,
+        stamp_s: float,
+        wl_m: FloatArray,
+        end_xy_m: FloatArray,
+        end_occluded: FloatArray,
+    ) -> None:
+        """Append each slot's posterior centroid, speed, box size and its detection's ends
+        (``end_xy_m`` (k, 4), ``end_occluded`` (k, 2) as 1.0 / 0.0 / NaN) to its histories."""
         if slots.shape[0] == 0:
             return
         self.hist_xy[slots, :-1] = self.hist_xy[slots, 1:]
         self.hist_t[slots, :-1] = self.hist_t[slots, 1:]
         self.hist_speed[slots, :-1] = self.hist_speed[slots, 1:]
+        self.hist_end[slots, :-1] = self.hist_end[slots, 1:]
+        self.hist_occ[slots, :-1] = self.hist_occ[slots, 1:]
+        self.hist_end[slots, -1] = end_xy_m
+        self.hist_occ[slots, -1] = end_occluded
         self.hist_xy[slots, -1] = self.x_post[slots, :2]
         self.hist_t[slots, -1] = stamp_s
         self.hist_speed[slots, -1] = np.hypot(self.x_post[slots, 2], self.x_post[slots, 3])

@@ -20,7 +20,15 @@ from pipeline.errors import SafecaseError
 from pipeline.track import kalman
 from pipeline.track.associate import assign, cascade, gated_costs
 from pipeline.track.lifecycle import FREE, TrackStore, size_compatible
-from pipeline.types import Clusters, FloatArray, IntArray, Tracks, TrackStatus, frozen_array
+from pipeline.types import (
+    BoolArray,
+    Clusters,
+    FloatArray,
+    IntArray,
+    Tracks,
+    TrackStatus,
+    frozen_array,
+)
 
 __all__ = ["CycleCounts", "Detections", "Tracker", "TrackerError"]
 
@@ -31,13 +39,20 @@ class TrackerError(SafecaseError, ValueError):
 
 @dataclass(frozen=True, slots=True)
 class Detections:
-    """What the tracker consumes from one scan: centroids and box sizes (struct of arrays)."""
+    """What the tracker consumes from one scan: centroids and box sizes (struct of arrays).
+
+    Optionally the clusters' ends: ``end_xy_m`` (n, 4) ``[x0, y0, x1, y1]`` and
+    ``end_occluded`` (n, 2) (:mod:`pipeline.cluster_ends`). The tracker only keeps them in the
+    tracks' histories for the classifier's features; without them those entries are NaN.
+    """
 
     stamp_s: float
     x_m: FloatArray
     y_m: FloatArray
     width_m: FloatArray
     length_m: FloatArray
+    end_xy_m: FloatArray | None = None
+    end_occluded: BoolArray | None = None
 
     def __post_init__(self) -> None:
         for name in ("x_m", "y_m", "width_m", "length_m"):
@@ -45,17 +60,35 @@ class Detections:
         n = self.x_m.shape
         if self.y_m.shape != n or self.width_m.shape != n or self.length_m.shape != n:
             raise TrackerError("Detections: x_m, y_m, width_m and length_m must match in shape")
+        if (self.end_xy_m is None) != (self.end_occluded is None):
+            raise TrackerError("Detections: end_xy_m and end_occluded come together or not at all")
+        if self.end_xy_m is not None and self.end_occluded is not None:
+            object.__setattr__(self, "end_xy_m", frozen_array(self.end_xy_m))
+            object.__setattr__(self, "end_occluded", frozen_array(self.end_occluded, np.bool_))
+            if self.end_xy_m.shape != (*n, 4) or self.end_occluded.shape != (*n, 2):
+                raise TrackerError(
+                    f"Detections: end_xy_m must have shape {(*n, 4)} and end_occluded {(*n, 2)}"
+                )
 
     @classmethod
     def from_clusters(cls, clusters: Clusters) -> Detections:
-        """Centroids and oriented-box sizes of the kept clusters."""
+        """Centroids, oriented-box sizes and ends of the kept clusters (scanner frame)."""
         return cls(
             clusters.stamp_s,
             clusters.centroid_x_m,
             clusters.centroid_y_m,
             clusters.width_m,
             clusters.length_m,
+            np.stack([clusters.end_x_m, clusters.end_y_m], axis=2).reshape(-1, 4),
+            clusters.end_occluded,
         )
+
+    def ends(self) -> tuple[FloatArray, FloatArray]:
+        """``(end_xy_m, occluded)``, (n, 4) and (n, 2) floats (1.0 occluded, 0.0 free); NaN
+        for detections without ends."""
+        if self.end_xy_m is None or self.end_occluded is None:
+            return np.full((self.n, 4), np.nan), np.full((self.n, 2), np.nan)
+        return self.end_xy_m, self.end_occluded.astype(np.float64)
 
     @property
     def n(self) -> int:
@@ -106,6 +139,7 @@ class Tracker:
         det_wl = np.stack([detections.width_m, detections.length_m], axis=1)
         if not (np.all(np.isfinite(det_xy)) and np.all(np.isfinite(det_wl))):
             raise TrackerError("Tracker.step: detections must be finite (x, y, width, length)")
+        det_end, det_occ = detections.ends()
         det_index = np.arange(detections.n)
         n_dropped = 0
         if detections.n > c.max_detections:
@@ -113,6 +147,7 @@ class Tracker:
             det_index = np.sort(nearest[: c.max_detections])
             n_dropped = detections.n - c.max_detections
             det_xy, det_wl = det_xy[det_index], det_wl[det_index]
+            det_end, det_occ = det_end[det_index], det_occ[det_index]
 
         live = np.flatnonzero(st.live)
         if live.shape[0] and dt > 0.0:
@@ -143,7 +178,7 @@ class Tracker:
             st.p[slots] = st.p_post[slots] = p_new
             st.last_update_s[slots] = stamp
             st.detection_index[slots] = det_index[dets]
-            st.record(slots, stamp, det_wl[dets])
+            st.record(slots, stamp, det_wl[dets], det_end[dets], det_occ[dets])
         hit = np.zeros(st.capacity, dtype=bool)
         hit[slots] = True
         reidentified = np.zeros(st.capacity, dtype=bool)
@@ -159,7 +194,8 @@ class Tracker:
         n_refused = int(np.count_nonzero(free)) - leftover.shape[0]
         if leftover.shape[0]:
             x0, p0 = kalman.initiate(det_xy[leftover], c.measurement_std_m, c.init_velocity_std_mps)
-            st.create(x0, p0, stamp, det_wl[leftover], det_index[leftover])
+            ends = (det_end[leftover], det_occ[leftover])
+            st.create(x0, p0, stamp, det_wl[leftover], det_index[leftover], ends)
 
         self.last_stamp_s = stamp
         self.last_counts = CycleCounts(
@@ -264,4 +300,6 @@ class Tracker:
             max_width_m=st.max_wl[slots, 0],
             max_length_m=st.max_wl[slots, 1],
             reid_count=st.reid_count[slots],
+            history_end_xy_m=st.hist_end[slots],
+            history_end_occluded=st.hist_occ[slots],
         )

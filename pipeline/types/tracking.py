@@ -92,7 +92,11 @@ class Clusters:
     counter-clockwise vertices of cluster ``k`` are ``hull_x_m[hull_offsets[k]:hull_offsets[k
     + 1]]`` (one vertex for coincident points, two for collinear ones). ``point_labels`` gives,
     for every point of the :class:`ScanPoints` the clusters came from, its kept cluster index
-    or -1 (noise, or a cluster dropped by the size filter or the cap).
+    or -1 (noise, or a cluster dropped by the size filter or the cap). ``end_x_m`` and
+    ``end_y_m`` (n, 2) are the cluster's first and last point in the counter-clockwise sweep
+    (column 0 where the sweep enters the cluster); ``end_occluded`` (n, 2) says whether the
+    beam next to that end returned a point nearer than it (:mod:`pipeline.cluster_ends`): the
+    object may go on behind.
     """
 
     stamp_s: float
@@ -109,6 +113,9 @@ class Clusters:
     hull_offsets: IntArray
     point_labels: IntArray
     counts: ClusterCounts
+    end_x_m: FloatArray
+    end_y_m: FloatArray
+    end_occluded: BoolArray
 
     def __post_init__(self) -> None:
         per_cluster = (
@@ -120,12 +127,18 @@ class Clusters:
             "area_m2",
             "point_density_per_m2",
         )
-        freeze_fields(self, (*per_cluster, "hull_x_m", "hull_y_m"), np.float64)
+        freeze_fields(
+            self, (*per_cluster, "hull_x_m", "hull_y_m", "end_x_m", "end_y_m"), np.float64
+        )
         freeze_fields(self, ("n_points", "hull_offsets", "point_labels"), np.int64)
+        freeze_fields(self, ("end_occluded",), np.bool_)
         n = self.centroid_x_m.shape[0]
         for name in (*per_cluster, "n_points"):
             if getattr(self, name).shape != (n,):
                 raise ValueError(f"Clusters: {name} must have shape ({n},)")
+        for name in ("end_x_m", "end_y_m", "end_occluded"):
+            if getattr(self, name).shape != (n, 2):
+                raise ValueError(f"Clusters: {name} must have shape ({n}, 2)")
         if self.hull_offsets.shape != (n + 1,) or self.hull_x_m.shape != self.hull_y_m.shape:
             raise ValueError("Clusters: hull_offsets must have n + 1 entries")
 
@@ -164,6 +177,9 @@ class Tracks:
     ``history_speed_mps`` and ``history_t_s`` are the filtered speeds and stamps of the same
     history entries; ``max_width_m`` and ``max_length_m`` the largest box the track has shown
     since it was born (a part-view of a large object keeps the size once seen).
+    ``history_end_xy_m`` (n, h, 4) holds the same entries' cluster ends ``[x0, y0, x1, y1]``
+    in the tracking frame and ``history_end_occluded`` (n, h, 2) whether each end was bounded
+    by a nearer return (1.0 / 0.0; NaN where the detection carried no ends).
     """
 
     stamp_s: float
@@ -187,6 +203,8 @@ class Tracks:
     max_width_m: FloatArray
     max_length_m: FloatArray
     reid_count: IntArray
+    history_end_xy_m: FloatArray
+    history_end_occluded: FloatArray
 
     def __post_init__(self) -> None:
         freeze_fields(
@@ -204,6 +222,8 @@ class Tracks:
                 "history_t_s",
                 "max_width_m",
                 "max_length_m",
+                "history_end_xy_m",
+                "history_end_occluded",
             ),
             np.float64,
         )
@@ -227,6 +247,8 @@ class Tracks:
         h = self.history_xy_m.shape[:2]
         if self.history_speed_mps.shape != h or self.history_t_s.shape != h:
             raise ValueError(f"Tracks: history_speed_mps and history_t_s must be {h}")
+        if self.history_end_xy_m.shape != (*h, 4) or self.history_end_occluded.shape != (*h, 2):
+            raise ValueError(f"Tracks: history_end_xy_m must be {(*h, 4)}, occluded {(*h, 2)}")
         if self.max_width_m.shape != (n,) or self.max_length_m.shape != (n,):
             raise ValueError(f"Tracks: max_width_m and max_length_m must be ({n},)")
 

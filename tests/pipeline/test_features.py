@@ -11,6 +11,9 @@ import pytest
 from pipeline.cluster import cluster_scan
 from pipeline.config import default_config
 from pipeline.features import (
+    END_FEATURE_NAMES,
+    END_MIN_ENTRIES,
+    END_WINDOW,
     FEATURE_NAMES,
     GROUP_FEATURE_NAMES,
     GROUP_RADIUS_M,
@@ -43,7 +46,8 @@ def test_names_and_index() -> None:
     assert len(SOURCE_FEATURE_NAMES) == 10
     assert FEATURE_NAMES[:10] == SOURCE_FEATURE_NAMES
     assert FEATURE_NAMES[10:15] == MEMORY_FEATURE_NAMES
-    assert FEATURE_NAMES[15:] == GROUP_FEATURE_NAMES
+    assert FEATURE_NAMES[15:17] == GROUP_FEATURE_NAMES
+    assert FEATURE_NAMES[17:] == END_FEATURE_NAMES
     assert feature_index("is_near_reversal") == 9
     with pytest.raises(KeyError, match="unknown feature 'speed'"):
         feature_index("speed")
@@ -138,6 +142,17 @@ def test_detections_move_into_the_frame() -> None:
     assert moved.x_m[0] == pytest.approx(1.0 - clusters.centroid_y_m[0])
     assert moved.y_m[0] == pytest.approx(2.0 + clusters.centroid_x_m[0])
     assert moved.width_m[0] == clusters.width_m[0]
+    assert moved.end_xy_m is not None
+    assert moved.end_occluded is not None
+    assert moved.end_xy_m[0].tolist() == pytest.approx(
+        [
+            1.0 - clusters.end_y_m[0, 0],
+            2.0 + clusters.end_x_m[0, 0],
+            1.0 - clusters.end_y_m[0, 1],
+            2.0 + clusters.end_x_m[0, 1],
+        ]
+    )
+    assert moved.end_occluded.tolist() == clusters.end_occluded.tolist()
     with pytest.raises(ValueError, match="must be finite"):
         detections_in_frame(clusters, (math.nan, 0.0, 0.0))
 
@@ -204,3 +219,92 @@ def test_no_tracks_no_rows() -> None:
         },
     )
     assert track_features(empty, None, config.predict).values.shape == (0, len(FEATURE_NAMES))
+
+
+def _with_ends(
+    t_s: list[float],
+    first_xy: list[tuple[float, float]],
+    last_xy: list[tuple[float, float]],
+    occluded: list[tuple[float, float]],
+    detection_index: int = 0,
+) -> Tracks:
+    """A one-track snapshot whose newest history entries carry these ends (oldest first)."""
+    one = tracks_of(np.zeros(2), np.zeros(2), 0.1, 0.1, 0.5, 1.0, np.zeros((1, 2)))
+    k = len(t_s)
+    t = np.full((1, 15), np.nan)
+    ends = np.full((1, 15, 4), np.nan)
+    occ = np.full((1, 15, 2), np.nan)
+    t[0, 15 - k :] = t_s
+    ends[0, 15 - k :] = np.concatenate([np.array(first_xy), np.array(last_xy)], axis=1)
+    occ[0, 15 - k :] = occluded
+    return replace(
+        one,
+        history_t_s=t,
+        history_end_xy_m=ends,
+        history_end_occluded=occ,
+        detection_index=np.array([detection_index]),
+    )
+
+
+def _ends_row(tracks: Tracks) -> dict[str, float]:
+    row = track_features(tracks, None, default_config().predict).values[0]
+    return {name: float(row[feature_index(name)]) for name in END_FEATURE_NAMES}
+
+
+def test_a_clipped_view_moves_at_its_free_end() -> None:
+    # A truck entering a gap: its free end advances 1 m/s along y, the end at the occluder's
+    # edge stays; the centroid would move at half the speed.
+    t = [0.1 * k for k in range(5)]
+    row = _ends_row(
+        _with_ends(t, [(20.0, 0.1 * k) for k in range(5)], [(20.0, -1.0)] * 5, [(0.0, 1.0)] * 5)
+    )
+    assert row["ends_occluded"] == 1.0
+    assert row["end_speed_max_mps"] == pytest.approx(1.0)
+    assert row["end_speed_min_mps"] == pytest.approx(0.0, abs=1e-12)
+    assert row["free_end_speed_mps"] == pytest.approx(1.0)
+    assert row["end_occluded_share"] == pytest.approx(0.5)
+    assert row["end_mid_speed_mps"] == pytest.approx(0.5)
+
+
+def test_an_end_occluded_once_in_the_window_is_not_free() -> None:
+    t = [0.1 * k for k in range(5)]
+    first = [(0.0, 0.1 * k) for k in range(5)]
+    last = [(0.0, 1.0 + 0.2 * k) for k in range(5)]
+    occluded = [(0.0, 0.0)] * 4 + [(0.0, 1.0)]
+    row = _ends_row(_with_ends(t, first, last, occluded))
+    assert row["free_end_speed_mps"] == pytest.approx(1.0)  # the last end (2 m/s) is out
+    assert row["end_speed_max_mps"] == pytest.approx(2.0)
+    assert row["end_occluded_share"] == pytest.approx(0.1)
+    both = _ends_row(_with_ends(t, first, last, [(1.0, 0.0), *occluded[1:]]))
+    assert math.isnan(both["free_end_speed_mps"])  # neither end stayed free: missing
+
+
+def test_end_speeds_look_back_over_the_window_only() -> None:
+    # Twelve updates; the two oldest (outside the window) put the first end 5 m away.
+    n = END_WINDOW + 2
+    t = [0.1 * k for k in range(n)]
+    first = [(5.0, 5.0)] * 2 + [(0.5 * 0.1 * k, 0.0) for k in range(2, n)]
+    row = _ends_row(_with_ends(t, first, first, [(0.0, 0.0)] * n))
+    assert row["end_speed_max_mps"] == pytest.approx(0.5)
+    assert row["end_speed_min_mps"] == pytest.approx(0.5)
+
+
+def test_too_few_ends_or_a_coasting_track_give_missing_values() -> None:
+    k = END_MIN_ENTRIES - 1
+    short = _ends_row(
+        _with_ends(
+            [0.1 * i for i in range(k)], [(0.0, 0.0)] * k, [(1.0, 0.0)] * k, [(1.0, 0.0)] * k
+        )
+    )
+    assert short["ends_occluded"] == 1.0
+    assert all(math.isnan(v) for name, v in short.items() if name != "ends_occluded")
+    t = [0.1 * i for i in range(4)]
+    coasting = _ends_row(
+        _with_ends(t, [(0.0, 0.0)] * 4, [(1.0, 0.0)] * 4, [(1.0, 1.0)] * 4, detection_index=-1)
+    )
+    assert math.isnan(coasting["ends_occluded"])  # no cluster this cycle
+    assert coasting["end_speed_max_mps"] == pytest.approx(0.0, abs=1e-12)
+    without = _ends_row(
+        _with_ends(t, [(math.nan, math.nan)] * 4, [(math.nan, math.nan)] * 4, [(math.nan,) * 2] * 4)
+    )
+    assert all(math.isnan(v) for v in without.values())  # detections that carried no ends

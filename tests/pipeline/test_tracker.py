@@ -116,6 +116,53 @@ def test_deceleration_and_size_variance_features() -> None:
     assert tracks.size_variance_m2[0] == pytest.approx(0.0, abs=1e-12)
 
 
+def _det_with_ends(t: float, xs: list[float], occluded: list[bool]) -> Detections:
+    """Detections at (x, 0) with ends at (x, -0.5) and (x, 0.5), the first end as given."""
+    x = np.array(xs)
+    ends = np.stack([x, np.full_like(x, -0.5), x, np.full_like(x, 0.5)], axis=1)
+    occ = np.stack([np.array(occluded), np.zeros(len(xs), dtype=bool)], axis=1)
+    return Detections(t, x, np.zeros_like(x), np.full_like(x, 0.3), np.ones_like(x), ends, occ)
+
+
+def test_each_track_keeps_the_ends_of_the_detections_that_updated_it() -> None:
+    tr = Tracker(overridden(default_config(), {"track": {"max_detections": 2}}).track)
+    for k in range(3):
+        # Three detections, the farthest (x = 9) beyond the cap of two: its ends go with it.
+        tracks = tr.step(_det_with_ends(0.1 * k, [9.0, 2.0, 4.0], [True, k == 2, False]))
+    assert tracks.n == 2
+    order = np.argsort(tracks.state[:, 0])
+    near, far = order[0], order[1]
+    assert tracks.history_end_xy_m[near, -3:, 0] == pytest.approx([2.0] * 3)
+    assert tracks.history_end_xy_m[far, -3:, 3] == pytest.approx([0.5] * 3)
+    assert tracks.history_end_occluded[near, -3:, 0].tolist() == [0.0, 0.0, 1.0]
+    assert tracks.history_end_occluded[far, -3:].tolist() == [[0.0, 0.0]] * 3
+    assert np.isnan(tracks.history_end_xy_m[:, :-3]).all()  # padding before the first update
+    # Detections without ends (an older caller) leave NaN in those entries.
+    tracks = tr.step(_det(0.3, [(2.0, 0.0), (4.0, 0.0)]))
+    assert np.isnan(tracks.history_end_xy_m[:, -1]).all()
+    assert np.isnan(tracks.history_end_occluded[:, -1]).all()
+
+
+def test_a_reused_slot_starts_without_the_old_tracks_ends() -> None:
+    tr = Tracker(default_config().track)
+    tr.step(_det_with_ends(0.0, [3.0], [True]))
+    for k in (1, 2):  # a tentative track that misses is dropped and frees its slot
+        tr.step(_det(0.1 * k, []))
+    tracks = tr.step(_det_with_ends(0.3, [6.0], [False]))
+    assert tracks.n == 1
+    assert tracks.history_end_xy_m[0, -1, 0] == 6.0
+    assert np.isnan(tracks.history_end_xy_m[0, :-1]).all()
+    assert np.isnan(tracks.history_end_occluded[0, :-1]).all()
+
+
+def test_detections_refuse_half_or_misshapen_ends() -> None:
+    x = np.zeros(2)
+    with pytest.raises(TrackerError, match="come together"):
+        Detections(0.0, x, x, x, x, np.zeros((2, 4)))
+    with pytest.raises(TrackerError, match=r"end_xy_m must have shape \(2, 4\)"):
+        Detections(0.0, x, x, x, x, np.zeros((2, 2)), np.zeros((2, 2), dtype=bool))
+
+
 def test_metrics_count_an_id_switch_and_a_fragmentation() -> None:
     truth = [Frame(np.array([0]), np.array([[0.0, 0.0]])) for _ in range(4)]
     hyps = [
