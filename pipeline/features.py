@@ -85,6 +85,7 @@ its acceleration to every deceleration estimate; the training data use the odome
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -172,17 +173,18 @@ def detections_in_frame(clusters: Clusters, pose: tuple[float, float, float]) ->
     if not all(math.isfinite(v) for v in (x0, y0, yaw)):
         raise ValueError(f"detections_in_frame: pose {pose!r} must be finite (x_m, y_m, yaw_rad)")
     c, s = math.cos(yaw), math.sin(yaw)
-    x = np.column_stack([clusters.centroid_x_m, clusters.end_x_m])
-    y = np.column_stack([clusters.centroid_y_m, clusters.end_y_m])
-    fx, fy = x0 + c * x - s * y, y0 + s * x + c * y
-    return Detections(
-        clusters.stamp_s,
-        fx[:, 0],
-        fy[:, 0],
-        clusters.width_m,
-        clusters.length_m,
-        np.column_stack([fx[:, 1], fy[:, 1], fx[:, 2], fy[:, 2]]),
-        clusters.end_occluded,
+    local = Detections.from_clusters(clusters)
+    assert local.end_xy_m is not None  # from_clusters always carries the ends
+    # Centroids and both ends as one (n, 3, 2) block of points, moved by the same rotation.
+    xy = np.concatenate(
+        [np.stack([local.x_m, local.y_m], axis=1)[:, None, :], local.end_xy_m.reshape(-1, 2, 2)],
+        axis=1,
+    )
+    moved = np.stack(
+        [x0 + c * xy[..., 0] - s * xy[..., 1], y0 + s * xy[..., 0] + c * xy[..., 1]], axis=2
+    )
+    return replace(
+        local, x_m=moved[:, 0, 0], y_m=moved[:, 0, 1], end_xy_m=moved[:, 1:].reshape(-1, 4)
     )
 
 
