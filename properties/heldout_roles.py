@@ -13,14 +13,10 @@ its objects per seed; its rows are one group.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
-import numpy as np
-
 from pipeline.classify_data import Rows, simulation_of
 from pipeline.config import SafecaseConfig
 
-__all__ = ["DRAWN", "accuracy_by_role", "recall_cell", "row_roles"]
+__all__ = ["DRAWN", "row_roles"]
 
 DRAWN = "(objects drawn per seed)"
 
@@ -39,33 +35,4 @@ def row_roles(rows: Rows, config: SafecaseConfig) -> list[tuple[str, str]]:
             out.append((scenario, DRAWN))
         else:
             out.append((scenario, names[scenario].get(object_id, f"object {object_id}")))
-    return out
-
-
-def recall_cell(predicted: np.ndarray, selection: np.ndarray, code: int) -> str:
-    """``"93.1% of 812"``: the share of the selected rows predicted as ``code``, and their count;
-    ``"-"`` when nothing is selected."""
-    n = int(selection.sum())
-    return f"{(predicted[selection] == code).mean():.1%} of {n}" if n else "-"
-
-
-def accuracy_by_role(
-    roles: list[tuple[str, str]],
-    label: np.ndarray,
-    predicted: np.ndarray,
-    classes: Mapping[str, int],
-) -> list[list[object]]:
-    """One table row per role with rows of ``classes`` (name -> class code): the scenario, the
-    object, then per class its :func:`recall_cell`."""
-    order = sorted(set(roles))
-    index = {role: k for k, role in enumerate(order)}
-    role_code = np.array([index[role] for role in roles], dtype=np.int64)
-    out: list[list[object]] = []
-    for k, (scenario, name) in enumerate(order):
-        mine = role_code == k
-        if not np.isin(label[mine], list(classes.values())).any():
-            continue
-        cells: list[object] = [scenario, name]
-        cells += [recall_cell(predicted, mine & (label == code), code) for code in classes.values()]
-        out.append(cells)
     return out

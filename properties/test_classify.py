@@ -25,7 +25,8 @@ from pipeline.config import SafecaseConfig, overridden
 from pipeline.features import N_FEATURES, feature_index
 from pipeline.predict import near_reversal_flags, track_modes
 from pipeline.types import Classification, FloatArray, TrackFeatures
-from properties.heldout_roles import accuracy_by_role, recall_cell, row_roles
+from properties.heldout_roles import row_roles
+from properties.heldout_tables import accuracy_by_role, accuracy_in_bands, errors_by_role
 from properties.oracles.classify import (
     booster,
     model_thresholds,
@@ -162,25 +163,6 @@ def _safety_margins(
     return margin, top
 
 
-def _accuracy_in_bands(
-    label: np.ndarray,
-    predicted: np.ndarray,
-    names: tuple[str, ...],
-    value: FloatArray,
-    bands: list[tuple[float, float]],
-) -> list[list[object]]:
-    """Per published class, the recall among rows whose ``value`` falls in each band."""
-    out: list[list[object]] = []
-    for name in PUBLISHED:
-        code = names.index(name)
-        mine = label == code
-        cells: list[object] = [name]
-        for lo, hi in bands:
-            cells.append(recall_cell(predicted, mine & (value >= lo) & (value < hi), code))
-        out.append(cells)
-    return out
-
-
 @pytest.mark.requirement("SR-CLS-6", kind="measurement", code=[*CODE, "pipeline/features.py"])
 def test_heldout_accuracy_against_the_published_figures(
     classifier: Classifier, heldout: Rows, safecase_config: SafecaseConfig, evidence: Recorder
@@ -217,11 +199,13 @@ def test_heldout_accuracy_against_the_published_figures(
         "rows thinned to 10 % when stored",
     )
     evidence.plot("confusion matrix", _confusion_figure(confusion, names), caption="rows: truth")
+    published = {name: names.index(name) for name in PUBLISHED}
+    roles = row_roles(heldout, safecase_config)
     bands = [(0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, math.inf)]
     evidence.table(
         "held-out accuracy by range from the robot",
         ["class", *[f"{lo:g}-{hi:g} m" for lo, hi in bands]],
-        _accuracy_in_bands(label, predicted, names, heldout.range_m, bands),
+        accuracy_in_bands(label, predicted, published, heldout.range_m, bands),
         caption="far objects return few points (1080 beams: 0.33 deg, 5.8 cm at 10 m)",
     )
     # How much of the object the cluster shows: a forklift is 2.3-3.1 m long, so a box
@@ -231,18 +215,13 @@ def test_heldout_accuracy_against_the_published_figures(
     evidence.table(
         "held-out accuracy by the length of the cluster's box",
         ["class", *[f"{lo:g}-{hi:g} m" for lo, hi in shown]],
-        _accuracy_in_bands(label, predicted, names, length, shown),
+        accuracy_in_bands(label, predicted, published, length, shown),
         caption="partial views (short boxes) carry little of the object's shape",
     )
     evidence.table(
         "held-out accuracy by scenario and object",
         ["scenario", "object", *PUBLISHED],
-        accuracy_by_role(
-            row_roles(heldout, safecase_config),
-            label,
-            predicted,
-            {name: names.index(name) for name in PUBLISHED},
-        ),
+        accuracy_by_role(roles, label, predicted, published),
         caption="the drill's cross_forklift is seen through the 3.5 m gap between the rack rows "
         "24-27 m ahead: a truck longer than the gap fills it moving or not",
     )
@@ -269,6 +248,12 @@ def test_heldout_accuracy_against_the_published_figures(
         + [["total", int(smaller.sum()), f"{smaller.sum() / max(int(truly_near.sum()), 1):.2%}"]],
         caption=f"margin below the near-reversal tier's {top} m; rows misclassified with low "
         "confidence or as a forklift whose kinematics say near reversal keep the largest margin",
+    )
+    evidence.table(
+        "safety-relevant errors by scenario and object",
+        ["scenario", "object", "near-reversal rows given a smaller margin", "predicted as"],
+        errors_by_role(roles, smaller, truly_near, predicted, names),
+        caption="a truck whose view shows no motion is called what such views mostly are",
     )
     person = names.index("person")
     evidence.counts(

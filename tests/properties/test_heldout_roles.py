@@ -6,7 +6,7 @@ import numpy as np
 
 from pipeline.classify_data import DRILL, Rows, RunSpec
 from pipeline.config import default_config
-from properties.heldout_roles import DRAWN, accuracy_by_role, row_roles
+from properties.heldout_roles import DRAWN, row_roles
 
 
 def _rows(runs: list[RunSpec], run: list[int], object_id: list[int]) -> Rows:
@@ -41,12 +41,3 @@ def test_roles_name_the_objects_of_named_scenarios_and_the_drill() -> None:
         ("reversing_forklift_aisle", "forklift"),
         ("reversing_forklift_aisle", "object 99"),
     ]
-
-
-def test_accuracy_by_role_counts_each_class_within_each_role() -> None:
-    roles = [("a", "x"), ("a", "x"), ("a", "x"), ("b", "y"), ("b", "z")]
-    label = np.array([0, 0, 1, 0, 5])
-    predicted = np.array([0, 1, 1, 2, 5])
-    table = accuracy_by_role(roles, label, predicted, {"m": 0, "s": 1})
-    # Role ("b", "z") has only class 5 rows, which the table does not show: no line for it.
-    assert table == [["a", "x", "50.0% of 2", "100.0% of 1"], ["b", "y", "0.0% of 1", "-"]]
