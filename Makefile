@@ -11,7 +11,7 @@ TEST_OUT := out/test-evidence
 
 help:
 	@echo "make certify   run the whole certification suite, write out/certification/<stamp>/"
-	@echo "make test      ruff + mypy --strict + pytest (ci profile), evidence in $(TEST_OUT)/"
+	@echo "make test      ruff + import-linter + mypy --strict + pytest (ci profile), evidence in $(TEST_OUT)/"
 	@echo "make lock      re-resolve requirements.lock from pyproject.toml (needs network)"
 
 $(STAMP): requirements.lock pyproject.toml
@@ -36,6 +36,7 @@ certify: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check pipeline safety properties evidence tests
 	$(BIN)/ruff format --check pipeline safety properties evidence tests
+	$(BIN)/lint-imports
 
 typecheck: $(STAMP)
 	$(BIN)/mypy

@@ -14,16 +14,14 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from cryptography.exceptions import InvalidSignature
-from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from pipeline.errors import EvidenceError
+from safety.audit.keys import public_key_fingerprint, raw_public_key
 
 MANIFEST = "manifest.json"
 SIGNATURE = "manifest.sig"
@@ -33,9 +31,6 @@ __all__ = [
     "MANIFEST",
     "SIGNATURE",
     "VerifyResult",
-    "default_key_path",
-    "load_or_create_key",
-    "public_key_fingerprint",
     "sha256_file",
     "verify_bundle",
     "write_manifest",
@@ -49,50 +44,6 @@ def sha256_file(path: Path) -> str:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
-
-
-def default_key_path() -> Path:
-    """Where the signing key lives when none is given: outside any bundle."""
-    env = os.environ.get("SAFECASE_SIGNING_KEY")
-    if env:
-        return Path(env)
-    return Path.home() / ".config" / "safecase" / "signing-key.pem"
-
-
-def load_or_create_key(path: Path | None = None) -> tuple[Ed25519PrivateKey, Path, bool]:
-    """Load the Ed25519 private key at ``path``; create it (mode 0600) if it does not exist.
-
-    Returns the key, its path, and whether it was created now.
-    """
-    key_path = path or default_key_path()
-    if key_path.exists():
-        try:
-            key = serialization.load_pem_private_key(key_path.read_bytes(), password=None)
-        except (ValueError, TypeError) as exc:
-            raise EvidenceError(f"signing key {key_path}: not a PEM private key ({exc})") from None
-        if not isinstance(key, Ed25519PrivateKey):
-            raise EvidenceError(f"signing key {key_path}: expected an Ed25519 key")
-        return key, key_path, False
-    key = Ed25519PrivateKey.generate()
-    key_path.parent.mkdir(parents=True, exist_ok=True)
-    pem = key.private_bytes(
-        serialization.Encoding.PEM,
-        serialization.PrivateFormat.PKCS8,
-        serialization.NoEncryption(),
-    )
-    fd = os.open(key_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    with os.fdopen(fd, "wb") as handle:
-        handle.write(pem)
-    return key, key_path, True
-
-
-def _raw_public(key: Ed25519PublicKey) -> bytes:
-    return key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
-
-
-def public_key_fingerprint(key: Ed25519PublicKey) -> str:
-    """``sha256:<hex>`` of the raw public key, for people to compare."""
-    return "sha256:" + hashlib.sha256(_raw_public(key)).hexdigest()
 
 
 def _bundle_files(bundle: Path) -> list[Path]:
@@ -120,7 +71,7 @@ def write_manifest(bundle: Path, provenance: dict[str, Any], key: Ed25519Private
         "provenance": provenance,
         "signature": {
             "algorithm": "Ed25519",
-            "public_key": base64.b64encode(_raw_public(public)).decode("ascii"),
+            "public_key": base64.b64encode(raw_public_key(public)).decode("ascii"),
             "fingerprint": public_key_fingerprint(public),
             "signed_file": MANIFEST,
             "signature_file": SIGNATURE,
@@ -145,25 +96,6 @@ class VerifyResult:
     def ok(self) -> bool:
         """True when no file changed, none was added or removed and the signature holds."""
         return not self.problems
-
-
-def load_public_key(path: Path) -> Ed25519PublicKey:
-    """A trusted public key: PEM (public or private) or base64 of the raw 32 bytes."""
-    data = path.read_bytes()
-    try:
-        if b"PRIVATE KEY" in data:
-            private = serialization.load_pem_private_key(data, password=None)
-            if isinstance(private, Ed25519PrivateKey):
-                return private.public_key()
-        elif b"PUBLIC KEY" in data:
-            public = serialization.load_pem_public_key(data)
-            if isinstance(public, Ed25519PublicKey):
-                return public
-        else:
-            return Ed25519PublicKey.from_public_bytes(base64.b64decode(data.strip()))
-    except ValueError as exc:
-        raise EvidenceError(f"public key {path}: unreadable ({exc})") from None
-    raise EvidenceError(f"public key {path}: expected an Ed25519 key")
 
 
 def verify_bundle(bundle: Path, trusted: Ed25519PublicKey | None = None) -> VerifyResult:
@@ -197,7 +129,7 @@ def verify_bundle(bundle: Path, trusted: Ed25519PublicKey | None = None) -> Veri
                 f"changed: {SIGNATURE} or {MANIFEST} (the signature does not match the manifest)"
             )
     if trusted is not None:
-        if _raw_public(trusted) == public_raw:
+        if raw_public_key(trusted) == public_raw:
             result.trusted_key = True
         else:
             result.problems.append(

@@ -27,7 +27,7 @@ SCHEMA_ID = "safecase-evidence"
 SCHEMA_VERSION = "1.0"
 
 Outcome = Literal["passed", "failed", "skipped", "error"]
-Verdict = Literal["SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED"]
+RequirementVerdict = Literal["SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED"]
 SmtVerdict = Literal["PROVED", "REFUTED", "UNKNOWN"]
 
 __all__ = [
@@ -82,8 +82,8 @@ class RequirementResult:
     claim: str
     source: str
     code: list[str]
-    verdict: Verdict
-    would_be: Verdict
+    verdict: RequirementVerdict
+    would_be: RequirementVerdict
     minimum: dict[str, int]
     passing: dict[str, int]
     missing: list[str]
@@ -93,7 +93,7 @@ class RequirementResult:
 
 def _verdict_for(
     req: Requirement, items: list[EvidenceItem]
-) -> tuple[Verdict, dict[str, int], list[str], list[str]]:
+) -> tuple[RequirementVerdict, dict[str, int], list[str], list[str]]:
     passing: Counter[str] = Counter()
     failures: list[str] = []
     for item in items:
@@ -107,7 +107,7 @@ def _verdict_for(
         for kind, count in req.minimum
         if passing.get(kind, 0) < count
     ]
-    verdict: Verdict
+    verdict: RequirementVerdict
     if failures:
         verdict = "VIOLATED"
     elif missing:

@@ -3,7 +3,7 @@
 Registered through the ``pytest11`` entry point, so every pytest run in safecase's virtual
 environment has it. It is inert unless asked for output:
 
-* ``@pytest.mark.requirement("SR-STOP-1", kind="proof", code=["safety/stopping.py"])`` links a
+* ``@pytest.mark.requirement("SR-STOP-1", kind="proof", code=["safety/model/stopping.py"])`` links a
   test to requirements; an unknown ID fails the collection of that test's module;
 * the session fixture ``evidence`` (or :func:`evidence.record.current`) attaches details;
 * Hypothesis statistics, pytest-benchmark results and failures are captured per test;
@@ -29,14 +29,14 @@ from hypothesis.statistics import collector
 
 from evidence.catalogue import EVIDENCE_KINDS, Catalogue, load_catalogue
 from evidence.environment import collect_environment, git_state
-from evidence.manifest import load_or_create_key
 from evidence.model import Bundle, EvidenceItem, Outcome, compute_verdicts
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
 from evidence.report import write_bundle
-from pipeline.classify import model_provenance
+from pipeline.classify.model import model_provenance
 from pipeline.config import SafecaseConfig, config_hash, load_config
 from pipeline.errors import ConfigError, RequirementsError, SafecaseError
+from safety.audit.keys import load_or_create_key
 
 register_profiles()
 

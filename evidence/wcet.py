@@ -26,7 +26,7 @@ latency_source=...)``): the largest of both pWCET estimates and the observed max
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,7 @@ import numpy.typing as npt
 from scipy import stats
 
 from pipeline.errors import EvidenceError
+from pipeline.jsoncodec import jsonable
 
 __all__ = [
     "IidChecks",
@@ -292,23 +293,18 @@ class PwcetReport:
     bound_s: float
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready form (NaN as None)."""
-
-        def clean(value: Any) -> Any:
-            if isinstance(value, dict):
-                return {k: clean(v) for k, v in value.items()}
-            if isinstance(value, float) and not math.isfinite(value):
-                return None
-            return value
-
-        return {
-            "stats": clean(asdict(self.stats)),
-            "gev": clean(asdict(self.gev)),
-            "gpd": clean(asdict(self.gpd)),
-            "iid": clean(asdict(self.iid)),
-            "exceedance_prob": self.exceedance_prob,
-            "bound_s": self.bound_s,
-        }
+        """JSON-ready form (non-finite floats as text: :mod:`pipeline.jsoncodec`)."""
+        data: dict[str, Any] = jsonable(
+            {
+                "stats": self.stats,
+                "gev": self.gev,
+                "gpd": self.gpd,
+                "iid": self.iid,
+                "exceedance_prob": self.exceedance_prob,
+                "bound_s": self.bound_s,
+            }
+        )
+        return data
 
 
 def pwcet(

@@ -59,7 +59,7 @@ Six end features follow (:data:`END_FEATURE_NAMES`). A truck seen through a gap 
 or past a nearer object, shows only the part between the occluders: its clipped ends stay at
 the occluders' edges while it moves, so its centroid, and with it the filtered velocity,
 barely moves. The tracker keeps each update's cluster ends and whether a nearer return bounded
-them (:mod:`pipeline.cluster_ends`); these columns read the newest :data:`END_WINDOW` entries of
+them (:mod:`pipeline.shape.ends`); these columns read the newest :data:`END_WINDOW` entries of
 that history (NaN with fewer than :data:`END_MIN_ENTRIES` entries that have ends). End speeds
 are least-squares speeds of an end's position over those entries [m/s].
 
@@ -76,21 +76,20 @@ end_mid_speed_mps           speed of the midpoint between the ends (the centroid
 ==========================  ================================================================
 
 Frames. The velocity must be the object's own (ground) velocity, so the tracker should run in
-an odometry or map frame: :func:`detections_in_frame` moves the clusters' centroids there from
-the scanner frame with the scanner's pose. ``robot_xy_m`` is then the robot's position in that
-frame. (Tracking in the moving robot's own frame adds the robot's velocity to every track and
-its acceleration to every deceleration estimate; the training data use the odometry frame.)
+an odometry or map frame: :func:`pipeline.track.tracker.detections_in_frame` moves the
+clusters' centroids there from the scanner frame with the scanner's pose. ``robot_xy_m`` is then the
+robot's position in that frame. (Tracking in the moving robot's own frame adds the robot's velocity
+to every track and its acceleration to every deceleration estimate; the training data use the
+odometry frame.)
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.config import PredictSection
-from pipeline.track.tracker import Detections
 from pipeline.types import BoolArray, Clusters, FloatArray, TrackFeatures, Tracks
 
 __all__ = [
@@ -104,7 +103,7 @@ __all__ = [
     "MEMORY_FEATURE_NAMES",
     "N_FEATURES",
     "SOURCE_FEATURE_NAMES",
-    "detections_in_frame",
+    "TrackFeatureExtractor",
     "feature_index",
     "track_features",
 ]
@@ -160,32 +159,6 @@ def feature_index(name: str) -> int:
         return FEATURE_NAMES.index(name)
     except ValueError:
         raise KeyError(f"unknown feature {name!r}; known: {', '.join(FEATURE_NAMES)}") from None
-
-
-def detections_in_frame(clusters: Clusters, pose: tuple[float, float, float]) -> Detections:
-    """The clusters' centroids moved from the scanner frame into a fixed frame (SR-CLS-2).
-
-    ``pose`` is the scanner's ``(x_m, y_m, yaw_rad)`` in that frame at the scan's stamp (from
-    odometry at run time, from the simulator's ground truth in training); the clusters' ends
-    move with them. Box sizes and occlusion flags are unchanged by a rigid motion.
-    """
-    x0, y0, yaw = (float(v) for v in pose)
-    if not all(math.isfinite(v) for v in (x0, y0, yaw)):
-        raise ValueError(f"detections_in_frame: pose {pose!r} must be finite (x_m, y_m, yaw_rad)")
-    c, s = math.cos(yaw), math.sin(yaw)
-    local = Detections.from_clusters(clusters)
-    assert local.end_xy_m is not None  # from_clusters always carries the ends
-    # Centroids and both ends as one (n, 3, 2) block of points, moved by the same rotation.
-    xy = np.concatenate(
-        [np.stack([local.x_m, local.y_m], axis=1)[:, None, :], local.end_xy_m.reshape(-1, 2, 2)],
-        axis=1,
-    )
-    moved = np.stack(
-        [x0 + c * xy[..., 0] - s * xy[..., 1], y0 + s * xy[..., 0] + c * xy[..., 1]], axis=2
-    )
-    return replace(
-        local, x_m=moved[:, 0, 0], y_m=moved[:, 0, 1], end_xy_m=moved[:, 1:].reshape(-1, 4)
-    )
 
 
 def track_features(
@@ -301,3 +274,16 @@ def _end_motion(tracks: Tracks) -> FloatArray:
     mid = 0.5 * (vel[:, 0:2] + vel[:, 2:4])
     out[ok, 5] = np.hypot(mid[ok, 0], mid[ok, 1])
     return out
+
+
+@dataclass(frozen=True)
+class TrackFeatureExtractor:
+    """The feature role's default: :func:`track_features` with the ``predict`` section."""
+
+    config: PredictSection
+
+    def features(
+        self, tracks: Tracks, clusters: Clusters | None, robot_xy_m: tuple[float, float]
+    ) -> TrackFeatures:
+        """The feature row of every track (robot position in the tracking frame)."""
+        return track_features(tracks, clusters, self.config, robot_xy_m)

@@ -1,22 +1,11 @@
 """Thermal and radar detections fused into the LiDAR tracks, with freshness (SR-FUS-1, SR-FUS-3).
 
-The freshness guard
--------------------
-:func:`is_fresh` is the ONE definition of "recent enough to use", written with ``-``, ``<=``
-and ``&`` only, so the same function evaluates with floats, numpy arrays and z3 terms
-(properties/test_staleness.py proves the z3 reading). A detection stamped ``stamp_s`` on a
-sensor clock that may differ from the decision clock by at most ``skew_s`` is used at decision
-time ``now_s`` only when its reported age ``a = now_s - stamp_s`` satisfies
-
-    ``-skew_s <= a <= max_age_s - skew_s - guard_s``.
-
-Then its true age (decision time minus true capture time) is at most ``max_age_s``: the
-stamp is off by at most ``skew_s``. ``guard_s`` (1 ns at run time) absorbs float rounding: near
-the threshold the age is at most ``max_age_s <= 10 s`` (the configured bound), so each of the
-three rounded operations errs by at most half an ulp of 16 s (1.8e-15 s), far below 1 ns; with
-stamps on a common epoch (Unix seconds) ``now_s - stamp_s`` is even exact (Sterbenz). NaN and
-infinite stamps compare false and are never fresh. The same guard decides scan staleness in
-:mod:`safety.monitors`.
+Freshness
+---------
+Fusion is given the freshness guard, a safety formula proved with z3
+(:func:`safety.model.freshness.is_fresh`, the role :class:`pipeline.roles.FreshnessGuard`);
+a detection is used at decision time ``now_s`` only where the guard says it is fresh for the
+sensor's maximum age and the configured clock skew (SR-FUS-1).
 
 Fusion
 ------
@@ -33,13 +22,14 @@ are counted and skipped: the cycle falls back to LiDAR only (:attr:`FusionCounts
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import Any
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.config import SafecaseConfig
-from pipeline.errors import ConfigError, SafecaseError
+from pipeline.config import FusionSection
+from pipeline.errors import SafecaseError
+from pipeline.frames import is_identity, to_parent
+from pipeline.roles import FreshnessGuard
 from pipeline.track.associate import assign
 from pipeline.types import (
     BoolArray,
@@ -47,6 +37,7 @@ from pipeline.types import (
     FusedTracks,
     FusionCounts,
     IntArray,
+    Pose,
     RadarDetections,
     ThermalDetections,
     Tracks,
@@ -54,16 +45,13 @@ from pipeline.types import (
 )
 
 __all__ = [
-    "FRESHNESS_GUARD_S",
     "FusionError",
+    "GatedFusion",
     "doppler_row",
     "doppler_update",
     "fuse",
-    "is_fresh",
+    "thermal_in_frame",
 ]
-
-# Time held back from every maximum age [s]: absorbs float rounding (see the module docstring).
-FRESHNESS_GUARD_S = 1e-9
 
 _LIVE = (TrackStatus.TENTATIVE, TrackStatus.CONFIRMED, TrackStatus.LOST)
 
@@ -72,18 +60,14 @@ class FusionError(SafecaseError, ValueError):
     """Fusion input that does not fit the tracks (a confidence array of the wrong length)."""
 
 
-def is_fresh(
-    now_s: Any, stamp_s: Any, max_age_s: Any, skew_s: Any, guard_s: Any = FRESHNESS_GUARD_S
-) -> Any:
-    """True where a detection stamped ``stamp_s`` may be used at ``now_s`` (SR-FUS-1, SR-FUS-2).
-
-    One definition, every reading (float, numpy, z3): the reported age must lie in
-    ``[-skew_s, max_age_s - skew_s - guard_s]`` [s]. With ``|stamp - true capture| <= skew_s``
-    this bounds the true age by ``max_age_s``; stamps further in the future than the skew
-    allows are refused too (the skew assumption is broken, so nothing can be concluded).
-    """
-    age_s = now_s - stamp_s
-    return (age_s >= -skew_s) & (age_s <= max_age_s - skew_s - guard_s)
+def thermal_in_frame(thermal: ThermalDetections, pose: Pose) -> ThermalDetections:
+    """Thermal detections moved from the robot frame at ``pose`` into the tracking frame."""
+    if is_identity(pose):
+        return thermal
+    x_m, y_m = to_parent(pose, thermal.x_m, thermal.y_m)
+    return ThermalDetections(
+        stamp_s=thermal.stamp_s, x_m=x_m, y_m=y_m, confidence=thermal.confidence
+    )
 
 
 def doppler_row(bearing_rad: FloatArray) -> FloatArray:
@@ -128,10 +112,15 @@ def doppler_update(
 
 
 def _classify_ages(
-    now_s: float, stamp_s: FloatArray, valid: BoolArray, max_age_s: float, skew_s: float
+    guard: FreshnessGuard,
+    now_s: float,
+    stamp_s: FloatArray,
+    valid: BoolArray,
+    max_age_s: float,
+    skew_s: float,
 ) -> tuple[BoolArray, int, int]:
     """Fresh mask among ``valid`` entries, and the counts of stale and future ones."""
-    fresh = valid & is_fresh(now_s, stamp_s, max_age_s, skew_s)
+    fresh = valid & guard(now_s, stamp_s, max_age_s, skew_s)
     with np.errstate(invalid="ignore"):
         future = valid & ~fresh & (now_s - stamp_s < -skew_s)
     return fresh, int(np.count_nonzero(valid & ~fresh & ~future)), int(np.count_nonzero(future))
@@ -182,15 +171,15 @@ def _sort_detections(
     valid: BoolArray,
     max_age_s: float,
     cap: int,
-    config: SafecaseConfig,
+    f: FusionSection,
+    guard: FreshnessGuard,
 ) -> tuple[IntArray, IntArray, IntArray, dict[str, int]]:
     """Freshness, cap and gated matching of one sensor's detections.
 
     Returns the kept (fresh, within the cap) detection indices, the positions in that list
     that matched, the tracks they matched, and the counts named ``n_<sensor>_*``.
     """
-    f = config.fusion
-    fresh, stale, future = _classify_ages(now_s, stamp_s, valid, max_age_s, f.clock_skew_s)
+    fresh, stale, future = _classify_ages(guard, now_s, stamp_s, valid, max_age_s, f.clock_skew_s)
     kept, over = _cap(fresh, x_m, y_m, cap)
     rows, matched = _gated_match(tracks, live, x_m[kept], y_m[kept], stamp_s[kept], f.gate_m)
     counts = {
@@ -204,23 +193,12 @@ def _sort_detections(
     return kept, rows, matched, counts
 
 
-def _check(config: SafecaseConfig) -> None:
-    f = config.fusion
-    if f.thermal_only_confidence >= config.classify.medium_confidence_min:
-        raise ConfigError(
-            [
-                f"fusion.thermal_only_confidence ({f.thermal_only_confidence}) must be below "
-                f"classify.medium_confidence_min ({config.classify.medium_confidence_min}) so "
-                "that thermal-only pedestrians get the most cautious margin tier"
-            ]
-        )
-
-
 def fuse(
     now_s: float,
     tracks: Tracks,
-    config: SafecaseConfig,
+    section: FusionSection,
     *,
+    guard: FreshnessGuard,
     confidence: FloatArray | None = None,
     thermal: ThermalDetections | None = None,
     radar: RadarDetections | None = None,
@@ -231,11 +209,9 @@ def fuse(
     non-finite values count as 0). Serves SR-FUS-1 (only fresh detections are fused; stale
     ones give the LiDAR-only fallback) and SR-FUS-3 (unmatched fresh thermal detections become
     low-confidence pedestrians). Raises :class:`FusionError` when ``confidence`` does not have
-    one entry per track and :class:`ConfigError` when the configuration would let thermal-only
-    pedestrians take a confident tier.
+    one entry per track. ``guard`` decides freshness (:class:`pipeline.roles.FreshnessGuard`).
     """
-    _check(config)
-    f = config.fusion
+    f = section
     n = tracks.n
     if confidence is None:
         base = np.zeros(n)
@@ -255,7 +231,7 @@ def fuse(
     valid = np.isfinite(thermal.stamp_s) & np.isfinite(thermal.x_m) & np.isfinite(thermal.y_m)
     kept, rows, matched, counts = _sort_detections(
         "thermal", now_s, tracks, live, thermal.stamp_s, thermal.x_m, thermal.y_m, valid,
-        f.thermal_max_age_s, f.max_thermal, config,
+        f.thermal_max_age_s, f.max_thermal, f, guard,
     )  # fmt: skip
     conf[matched] = np.minimum(conf[matched] + f.confidence_boost, 1.0)
     thermal_index[matched] = kept[rows]
@@ -279,7 +255,7 @@ def fuse(
             )
         kept, rows, matched, radar_counts = _sort_detections(
             "radar", now_s, tracks, live, radar.stamp_s, rx, ry, valid,
-            f.radar_max_age_s, f.max_radar, config,
+            f.radar_max_age_s, f.max_radar, f, guard,
         )  # fmt: skip
         if rows.shape[0]:
             used = kept[rows]
@@ -308,3 +284,30 @@ def fuse(
         pedestrian_index=ped,
         counts=FusionCounts(**counts),
     )
+
+
+@dataclass(frozen=True)
+class GatedFusion:
+    """The fusion role's default: :func:`fuse` with the ``fusion`` section and a guard."""
+
+    config: FusionSection
+    guard: FreshnessGuard
+
+    def fuse(
+        self,
+        now_s: float,
+        tracks: Tracks,
+        confidence: FloatArray,
+        thermal: ThermalDetections | None,
+        radar: RadarDetections | None,
+    ) -> FusedTracks:
+        """Tracks with fresh thermal and radar detections fused in, at decision time ``now_s``."""
+        return fuse(
+            now_s,
+            tracks,
+            self.config,
+            guard=self.guard,
+            confidence=confidence,
+            thermal=thermal,
+            radar=radar,
+        )

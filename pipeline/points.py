@@ -13,6 +13,7 @@ that order to find neighbours in a narrow angular window instead of over all pai
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from pipeline.config import ScanSection
 from pipeline.errors import SafecaseError
 from pipeline.types import DropCounts, Scan, ScanPoints
 
-__all__ = ["ScanError", "scan_to_points"]
+__all__ = ["RangeFilter", "ScanError", "scan_to_points"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -76,3 +77,14 @@ def scan_to_points(scan: Scan, config: ScanSection) -> ScanPoints:
         beam_index=index.astype(np.int64),
         drops=drops,
     )
+
+
+@dataclass(frozen=True)
+class RangeFilter:
+    """The scan filter role's default: :func:`scan_to_points` with the ``scan`` section."""
+
+    config: ScanSection
+
+    def points(self, scan: Scan) -> ScanPoints:
+        """The valid beams of ``scan`` as robot-frame points, the others counted."""
+        return scan_to_points(scan, self.config)

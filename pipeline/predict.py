@@ -30,18 +30,21 @@ Every track's body is a disc about its reference point: half the diagonal of its
 least ``predict.min_body_radius_m``, plus ``k`` standard deviations of its position estimate.
 Arcs are drawn as circumscribed polygons (:func:`sector_points`), so hulls of the points
 returned contain the exact regions. Dormant tracks (not observed for several cycles) get no
-prediction. Margins are added by :mod:`safety.envelope`.
+prediction. Margins are added by :mod:`safety.geometry.envelopes`.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.classify import FORKLIFT_CLASSES, NEAR_REVERSAL_CLASS, STILL_CLASSES
-from pipeline.config import PredictSection, SafecaseConfig
+from pipeline.classify.model import FORKLIFT_CLASSES, NEAR_REVERSAL_CLASS, STILL_CLASSES
+from pipeline.config import PredictSection
+from pipeline.constructive import minkowski, sector_points
 from pipeline.features import feature_index
+from pipeline.track.kalman import largest_std
 from pipeline.types import (
     BoolArray,
     Classification,
@@ -54,13 +57,10 @@ from pipeline.types import (
 )
 
 __all__ = [
+    "KinematicPredictor",
     "confirmed_heading_rad",
-    "disc_points",
-    "largest_std",
-    "minkowski",
     "near_reversal_flags",
     "predict",
-    "sector_points",
     "track_modes",
 ]
 
@@ -87,106 +87,8 @@ def near_reversal_flags(features: TrackFeatures, predict: PredictSection) -> Boo
     return flags
 
 
-def largest_std(cov: FloatArray) -> FloatArray:
-    """Square root of the largest eigenvalue of each symmetric 2x2 matrix in ``cov`` (n, 2, 2)."""
-    a, b, d = cov[:, 0, 0], 0.5 * (cov[:, 0, 1] + cov[:, 1, 0]), cov[:, 1, 1]
-    half_trace = 0.5 * (a + d)
-    root = np.sqrt(np.maximum(0.25 * (a - d) ** 2 + b * b, 0.0))
-    result: FloatArray = np.sqrt(np.maximum(half_trace + root, 0.0))
-    return result
-
-
-def disc_points(cx: FloatArray, cy: FloatArray, radius: FloatArray, sides: int) -> FloatArray:
-    """(n, sides, 2) vertices of regular polygons circumscribing the discs (contain them)."""
-    angle = (np.arange(sides) + 0.5) * (2.0 * math.pi / sides)
-    outer = radius / math.cos(math.pi / sides)
-    out = np.empty((cx.shape[0], sides, 2))
-    out[:, :, 0] = cx[:, None] + outer[:, None] * np.cos(angle)[None, :]
-    out[:, :, 1] = cy[:, None] + outer[:, None] * np.sin(angle)[None, :]
-    return out
-
-
-def sector_points(
-    cx: FloatArray,
-    cy: FloatArray,
-    heading_rad: FloatArray,
-    half_angle_rad: FloatArray,
-    radius_m: FloatArray,
-    arc_step_rad: float,
-    disc_sides: int,
-) -> FloatArray:
-    """(n, P, 2) points whose hull contains each circular sector (apex, heading, half-angle).
-
-    The arc is split into ``m = ceil(2 alpha / arc_step_rad)`` equal pieces and replaced by the
-    tangent lines at the piece ends (they meet at radius ``R / cos(piece / 2)``), so the
-    polygon contains the sector. A half-angle of 90 deg or more, or a NaN heading, gives the
-    disc of radius ``R`` (:func:`disc_points`); rows with fewer points repeat the apex.
-    """
-    n = cx.shape[0]
-    disc = ~np.isfinite(heading_rad) | (half_angle_rad >= 0.5 * math.pi)
-    alpha = np.where(disc, 0.0, np.clip(half_angle_rad, 0.0, 0.5 * math.pi))
-    pieces = np.maximum(np.ceil(2.0 * alpha / arc_step_rad).astype(np.int64), 1)
-    most = int(pieces.max(initial=1))
-    width = max(most + 3, disc_sides)
-    out = np.empty((n, width, 2))
-    out[:, :, 0] = cx[:, None]
-    out[:, :, 1] = cy[:, None]
-    h = np.where(disc, 0.0, heading_rad)
-    step = 2.0 * alpha / pieces
-    start = h - alpha
-    out[:, 1, 0] = cx + radius_m * np.cos(start)
-    out[:, 1, 1] = cy + radius_m * np.sin(start)
-    k = np.arange(most)[None, :]
-    mid = start[:, None] + (k + 0.5) * step[:, None]
-    outer = (radius_m / np.cos(0.5 * step))[:, None]
-    used = k < pieces[:, None]
-    out[:, 2 : 2 + most, 0] = np.where(used, cx[:, None] + outer * np.cos(mid), cx[:, None])
-    out[:, 2 : 2 + most, 1] = np.where(used, cy[:, None] + outer * np.sin(mid), cy[:, None])
-    end = h + alpha
-    last = 2 + pieces
-    rows = np.arange(n)
-    out[rows, last, 0] = cx + radius_m * np.cos(end)
-    out[rows, last, 1] = cy + radius_m * np.sin(end)
-    if disc.any():
-        ring = disc_points(cx[disc], cy[disc], radius_m[disc], disc_sides)
-        out[disc] = np.concatenate(
-            [ring, np.repeat(ring[:, :1], width - disc_sides, axis=1)], axis=1
-        )
-    return out
-
-
-def minkowski(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Minkowski sums of convex polygons, row by row: (n, Ka + Kb, 2) counter-clockwise vertices.
-
-    ``a`` (n, Ka, 2) and ``b`` (n, Kb, 2) list each row's vertices counter-clockwise; repeated
-    points (padding) and degenerate rows (a point, a segment traversed there and back) are
-    fine. The sum's edges are the two polygons' edges merged by angle, starting from the sum
-    of their lowest (then leftmost) vertices; zero-length edges add nothing. The result may
-    hold repeated and collinear points (its hull is the sum).
-    """
-    n = a.shape[0]
-    start = _lowest(a) + _lowest(b)
-    edges = np.concatenate([np.roll(a, -1, axis=1) - a, np.roll(b, -1, axis=1) - b], axis=1)
-    angle = np.mod(np.arctan2(edges[:, :, 1], edges[:, :, 0]), 2.0 * math.pi)
-    order = np.argsort(angle, axis=1, kind="stable")
-    ordered = np.take_along_axis(edges, order[:, :, None], axis=1)
-    out = np.empty((n, edges.shape[1], 2))
-    out[:, 0] = start
-    out[:, 1:] = start[:, None, :] + np.cumsum(ordered[:, :-1], axis=1)
-    return out
-
-
-def _lowest(p: FloatArray) -> FloatArray:
-    """(n, 2): each row's lowest point, the leftmost of those at the lowest y."""
-    y = p[:, :, 1]
-    at_min = y == y.min(axis=1, keepdims=True)
-    pick = np.where(at_min, p[:, :, 0], np.inf).argmin(axis=1)
-    lowest: FloatArray = p[np.arange(p.shape[0]), pick]
-    return lowest
-
-
 def confirmed_heading_rad(
-    tracks: Tracks, speed: FloatArray, sigma_v: FloatArray, config: SafecaseConfig
+    tracks: Tracks, speed: FloatArray, sigma_v: FloatArray, section: PredictSection
 ) -> FloatArray:
     """Last confirmed heading per track [rad]; NaN when not known (module docstring)."""
     hist = tracks.history_xy_m
@@ -198,8 +100,8 @@ def confirmed_heading_rad(
     oldest = hist[rows, first, :]
     dx, dy = newest[:, 0] - oldest[:, 0], newest[:, 1] - oldest[:, 1]
     travel = np.hypot(dx, dy)
-    k = config.predict.velocity_sigmas
-    from_history = valid.any(axis=1) & (travel >= config.predict.heading_min_travel_m)
+    k = section.velocity_sigmas
+    from_history = valid.any(axis=1) & (travel >= section.heading_min_travel_m)
     from_velocity = ~from_history & (speed > k * sigma_v) & (speed > 0.0)
     vx, vy = tracks.state[:, 2], tracks.state[:, 3]
     heading = np.full(n, np.nan)
@@ -239,18 +141,21 @@ def predict(
     tracks: Tracks,
     features: TrackFeatures,
     classification: Classification,
-    config: SafecaseConfig,
+    section: PredictSection,
+    medium_confidence_min: float,
 ) -> Predictions:
     """Prediction rows for every non-dormant track (module docstring; SR-PRED-1).
 
-    ``features`` and ``classification`` must come from ``tracks`` (same rows, same order).
+    ``features`` and ``classification`` must come from ``tracks`` (same rows, same order);
+    ``medium_confidence_min`` (``classify.medium_confidence_min``) is the confidence below
+    which a track's class is not trusted and it is predicted as unknown.
     """
     if not (
         np.array_equal(features.track_id, tracks.track_id)
         and np.array_equal(classification.track_id, tracks.track_id)
     ):
         raise ValueError("predict: tracks, features and classification must list the same tracks")
-    pc = config.predict
+    pc = section
     horizon, k = pc.horizon_s, pc.velocity_sigmas
     live = tracks.status != int(TrackStatus.DORMANT)
     px, py = tracks.state[:, 0], tracks.state[:, 1]
@@ -264,9 +169,7 @@ def predict(
 
     confidence = classification.confidence
     flagged = near_reversal_flags(features, pc)
-    near, footprint, cone, unknown = track_modes(
-        classification, flagged, config.classify.medium_confidence_min
-    )
+    near, footprint, cone, unknown = track_modes(classification, flagged, medium_confidence_min)
 
     heading_v = np.arctan2(vy, vx)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -274,7 +177,7 @@ def predict(
             speed > k * sigma_v, np.arcsin(np.minimum(k * sigma_v / speed, 1.0)), np.pi
         )
     cone_half = math.radians(pc.cone_half_angle_deg)
-    confirmed = confirmed_heading_rad(tracks, speed, sigma_v, config)
+    confirmed = confirmed_heading_rad(tracks, speed, sigma_v, pc)
 
     # One entry per (track, mode); near-reversal tracks get two.
     parts: list[tuple[BoolArray, PredictionMode]] = [
@@ -340,3 +243,18 @@ def predict(
         body_radius_m=body[rows],
         reach_xy_m=reach,
     )
+
+
+@dataclass(frozen=True)
+class KinematicPredictor:
+    """The prediction role's default: :func:`predict` with the ``predict`` section and the
+    classifier's medium-confidence threshold."""
+
+    config: PredictSection
+    medium_confidence_min: float
+
+    def predict(
+        self, tracks: Tracks, features: TrackFeatures, classification: Classification
+    ) -> Predictions:
+        """Prediction rows for every non-dormant track."""
+        return predict(tracks, features, classification, self.config, self.medium_confidence_min)

@@ -3,8 +3,8 @@
 :func:`write_random_log` writes a log of synthetic cycles: random monitor observations (stale
 and fresh scans, clock jumps, deadline misses, driver states, caps overflowing), random governor
 inputs (including NaN and negative values the governor must refuse) and failed stages, each
-decided by :func:`safety.decision.decide` like the runtime does. :class:`Edit` applies one
-tampering edit to the log's bytes and says which line :func:`safety.audit_verify.verify_log`
+decided by :func:`safety.model.decision.decide` like the runtime does. :class:`Edit` applies one
+tampering edit to the log's bytes and says which line :func:`safety.audit.verify.verify_log`
 must name.
 """
 
@@ -19,10 +19,10 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from pipeline.config import SafecaseConfig
 from pipeline.types import DriverState
-from safety.audit import AuditWriter, CycleRecord, canonical_json, record_hash, summarize
-from safety.decision import GovernorInputs, decide
-from safety.governor import Governor
-from safety.monitors import Observation, Verdict
+from safety.audit.log import AuditWriter, CycleRecord, canonical_json, record_hash, summarize
+from safety.model.decision import GovernorInputs, decide
+from safety.model.governor import Governor
+from safety.model.monitors import MonitorVerdict, Observation
 
 __all__ = ["EDIT_KINDS", "Edit", "random_cycle", "write_random_log"]
 
@@ -49,9 +49,9 @@ def random_cycle(
         confidence=rng.uniform(0.0, 1.0, n) if rng.random() < 0.7 else None,
         near_reversal=rng.random(n) < 0.2 if rng.random() < 0.5 else None,
     )
-    stage: list[Verdict] = []
+    stage: list[MonitorVerdict] = []
     if rng.random() < 0.05:
-        stage.append(Verdict.stop("stage:track", "TrackerError: clock ran backwards"))
+        stage.append(MonitorVerdict.stop("stage:track", "TrackerError: clock ran backwards"))
         inputs_or_none: GovernorInputs | None = None
     else:
         inputs_or_none = inputs
@@ -88,7 +88,7 @@ def write_random_log(
 ) -> AuditWriter:
     """Write ``n_cycles`` random cycles to a new log at ``path``; close it unless told not to
     (an unclosed writer is what a crash leaves: its file descriptor is closed, nothing else)."""
-    governor = Governor(config)
+    governor = Governor.from_config(config)
     writer = AuditWriter(
         path,
         config,

@@ -9,7 +9,7 @@ from pathlib import Path
 
 __all__ = ["SAFECASE", "run_safecase"]
 
-SAFECASE = [sys.executable, "-m", "safety"]
+SAFECASE = [sys.executable, "-m", "evidence.cli"]
 
 
 def run_safecase(

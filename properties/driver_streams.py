@@ -15,19 +15,19 @@ from typing import Literal
 import numpy as np
 from hypothesis import strategies as st
 
-from pipeline.drivers import rplidar as rp
-from pipeline.drivers import scip
-from pipeline.drivers.assembly import LinkCounters
-from pipeline.drivers.devices import RplidarDevice, ScipDevice
-from pipeline.drivers.rplidar_stream import RplidarStream
-from pipeline.drivers.scip_stream import ScipStream
+from pipeline.sources.serial import rplidar as rp
+from pipeline.sources.serial import scip
+from pipeline.sources.serial.assembly import LinkCounters
+from pipeline.sources.serial.devices import RplidarDevice, ScipDevice
+from pipeline.sources.serial.rplidar_stream import RplidarStream
+from pipeline.sources.serial.scip_stream import ScipStream
 from pipeline.types import Scan
 from properties.oracles.drivers import checked_capsules, checked_scip_lines
 
 __all__ = [
     "LINKS",
+    "DecodeVerdict",
     "Link",
-    "Verdict",
     "decode",
     "device_frames",
     "forged_frames",
@@ -38,7 +38,7 @@ __all__ = [
 
 Link = Literal["rplidar-standard", "rplidar-express", "scip-md", "scip-ms"]
 LINKS: tuple[Link, ...] = ("rplidar-standard", "rplidar-express", "scip-md", "scip-ms")
-Verdict = Literal["harmless", "detected", "undetected"]
+DecodeVerdict = Literal["harmless", "detected", "undetected"]
 
 UTM_30LX = scip.ScipParams()
 URG_04LX = scip.ScipParams(
@@ -229,7 +229,7 @@ def judge(
     clean_counters: LinkCounters,
     faulty: Sequence[Scan],
     faulty_counters: LinkCounters,
-) -> Verdict:
+) -> DecodeVerdict:
     """Harmless (same output), detected (the decoder counted a rejection, a discard or a
     dropped or incomplete revolution, and emitted no foreign data) or undetected."""
     if foreign_beams(clean, faulty):

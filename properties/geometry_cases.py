@@ -13,8 +13,13 @@ import numpy as np
 from hypothesis import strategies as st
 
 from pipeline.types import ConvexPolygons, FloatArray
-from safety.geometry import convex_polygons
-from safety.swept import Trajectories, candidate_trajectories, rectangle_footprint, swept_hulls
+from safety.geometry.polygons import convex_polygons
+from safety.geometry.swept import (
+    Trajectories,
+    candidate_trajectories,
+    rectangle_footprint,
+    swept_hulls,
+)
 
 __all__ = [
     "HARD_CASES",

@@ -13,8 +13,8 @@ its objects per seed; its rows are one group.
 
 from __future__ import annotations
 
-from pipeline.classify_data import Rows, simulation_of
 from pipeline.config import SafecaseConfig
+from pipeline.training.data import Rows, simulation_of
 
 __all__ = ["DRAWN", "row_roles"]
 

@@ -17,8 +17,8 @@ satisfies the assumptions of :mod:`pipeline.predict` for that track's mode:
 * never faster than ``predict.max_object_speed_mps`` (the operating domain's limit, which
   caps every speed bound).
 
-Motions are :class:`pipeline.sim.motion.Motion` profiles integrated by the simulator
-(:func:`pipeline.sim.motion.integrate`), so the true positions are the simulator's.
+Motions are :class:`pipeline.sources.sim.motion.Motion` profiles integrated by the simulator
+(:func:`pipeline.sources.sim.motion.integrate`), so the true positions are the simulator's.
 """
 
 from __future__ import annotations
@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.classify import MODEL_CLASSES
+from pipeline.classify.model import MODEL_CLASSES
 from pipeline.config import SafecaseConfig
 from pipeline.features import N_FEATURES, feature_index
-from pipeline.sim import motion as mo
+from pipeline.sources.sim import motion as mo
 from pipeline.types import Classification, FloatArray, TrackFeatures, Tracks, TrackStatus
 
 __all__ = ["Case", "classification", "features_for", "make_case", "tracks_of"]

@@ -1,54 +1,42 @@
-"""The real 2D LiDAR logs in ``../shared/data/real`` as named scan streams (SR-TRK-2, SR-TRK-5).
+"""The real 2D LiDAR logs in ``../shared/data/real`` as log sources (SR-TRK-2, SR-TRK-5).
 
 The folder sits beside the repository (GPL/LGPL data are not copied into it); tests that use
-it skip with :data:`MISSING_REASON` when it is absent.
+it skip with :data:`MISSING_REASON` when it is absent. Every log goes through the same stamp
+rule as ``safecase run --log`` (:mod:`pipeline.sources.logs.stamps`); the two logs whose stamps
+break it are re-stamped at their median scan interval, as a user would with ``--restamp``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from functools import partial
 from pathlib import Path
 
-from pipeline.sources.logs import (
-    laserscan_topics,
-    read_breezyslam,
-    read_carmen,
-    read_ros1_bag,
-    restamped,
-)
-from pipeline.types import Scan
+from pipeline.sources.logs.bags import laserscan_topics
+from pipeline.sources.logs.source import LogSource
+from pipeline.sources.logs.stamps import StampRule
 
-__all__ = ["MISSING_REASON", "REAL_DATA", "streams"]
+__all__ = ["MISSING_REASON", "REAL_DATA", "RESTAMP_HZ", "streams"]
 
 REAL_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 MISSING_REASON = (
     f"real LiDAR logs not found at {REAL_DATA} (the shared data folder beside the repository; "
     "a fresh clone does not have it)"
 )
-# The corrected CSAIL log prints timestamps with six significant digits (steps of 10^4 s), so
-# its scans are restamped at the nominal 10 Hz of the other logs; the others keep their stamps.
-RESTAMP_PERIOD_S = {"csail-corrected.log.gz": 0.1}
-
-Stream = tuple[str, Callable[[], Iterator[Scan]]]
-
-
-def _restamped_carmen(path: Path, period_s: float) -> Iterator[Scan]:
-    return restamped(read_carmen(path), period_s)
+# The corrected CSAIL log prints its stamps with six significant digits (steps of 10^4 s): its
+# scans come at the nominal 10 Hz. The corrected Intel log steps back 0.11 s at scan 295; its
+# scans are 3.35 s apart (median). Every other log keeps its stamps.
+RESTAMP_HZ = {"csail-corrected.log.gz": 10.0, "intel-corrected.log.gz": 1.0 / 3.35}
 
 
-def streams(root: Path = REAL_DATA) -> list[Stream]:
-    """Every scan stream of the real logs: one per bag topic, one per text log."""
-    out: list[Stream] = []
+def streams(root: Path = REAL_DATA) -> list[LogSource]:
+    """Every scan stream of the real logs: one per bag topic, one per text log (CARMEN logs with
+    their odometry; the bags and the BreezySLAM log have none a pose can be read from)."""
+    out: list[LogSource] = []
     for bag in sorted((root / "leg_tracker").glob("*.bag")):
         for topic in laserscan_topics(bag):
-            out.append((f"{bag.name}:{topic}", partial(read_ros1_bag, bag, topic)))
+            out.append(LogSource(bag, scan_topic=topic))
     for dat in sorted((root / "breezyslam").glob("*.dat")):
-        out.append((dat.name, partial(read_breezyslam, dat)))
+        out.append(LogSource(dat))
     for log in sorted((root / "carmen").glob("*.log.gz")):
-        period = RESTAMP_PERIOD_S.get(log.name)
-        if period is None:
-            out.append((log.name, partial(read_carmen, log)))
-        else:
-            out.append((log.name, partial(_restamped_carmen, log, period)))
+        rule = StampRule(restamp_hz=RESTAMP_HZ.get(log.name))
+        out.append(LogSource(log, stamps=rule, odometry=True))
     return out

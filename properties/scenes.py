@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.track.metrics import Frame
+from pipeline.track.metrics import PositionsFrame
 from pipeline.track.tracker import Detections
 from pipeline.types import FloatArray, Scan
 
@@ -120,7 +120,7 @@ def random_obstacles(rng: np.random.Generator, n: int) -> list[Obstacle]:
 class OcclusionScene:
     """A detection sequence with its ground truth and what was hidden."""
 
-    frames: list[tuple[Detections, Frame]]
+    frames: list[tuple[Detections, PositionsFrame]]
     n_occlusions: int
     occluded_frames: int
 
@@ -157,7 +157,7 @@ def occlusion_sequence(
             length = int(rng.integers(occlusion_frames[0], occlusion_frames[1] + 1))
             hidden[start : start + length, k] = True
             n_occ += 1
-    frames: list[tuple[Detections, Frame]] = []
+    frames: list[tuple[Detections, PositionsFrame]] = []
     for f in range(n_frames):
         heading += rng.normal(0.0, 0.03, n_targets)
         vel = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], 1)
@@ -176,5 +176,5 @@ def occlusion_sequence(
         allwl = np.concatenate([wl, cwl])
         stamp = f * period_s
         det = Detections(stamp, allz[:, 0], allz[:, 1], allwl[:, 0], allwl[:, 1])
-        frames.append((det, Frame(np.arange(n_targets), pos.copy())))
+        frames.append((det, PositionsFrame(np.arange(n_targets), pos.copy())))
     return OcclusionScene(frames, n_occ, int(hidden.sum()))

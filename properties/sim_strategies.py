@@ -8,12 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import strategies as st
 
-from pipeline.sim import motion as mo
-from pipeline.sim.lidar import LidarSpec
-from pipeline.sim.objects import ObjectKind, model_for
-from pipeline.sim.scenarios import SCENARIOS
-from pipeline.sim.shapes import chamfered_rectangle, pose_points, rectangle, regular_polygon
-from pipeline.sim.world import SimObject, Structure, World
+from pipeline.sources.sim import motion as mo
+from pipeline.sources.sim.lidar import LidarSpec
+from pipeline.sources.sim.objects import ObjectKind, model_for
+from pipeline.sources.sim.scenarios import SCENARIOS
+from pipeline.sources.sim.shapes import chamfered_rectangle, pose_points, rectangle, regular_polygon
+from pipeline.sources.sim.world import SimObject, Structure, World
 from pipeline.types import FloatArray
 
 __all__ = ["RandomScene", "lidar_specs", "random_motions", "random_scenes"]
@@ -115,7 +115,7 @@ def lidar_specs(max_beams: int = 720) -> st.SearchStrategy[LidarSpec]:
         st.sampled_from([90.0, 180.0, 240.0, 270.0, 360.0]),
         st.floats(2.0, 30.0),
     )
-    from pipeline.sim.lidar import DEVICE_PRESETS
+    from pipeline.sources.sim.lidar import DEVICE_PRESETS
 
     devices = st.sampled_from(sorted(DEVICE_PRESETS)).map(lambda name: DEVICE_PRESETS[name]())
     return st.one_of(generic, devices)

@@ -10,10 +10,10 @@ means asking z3 for a model of ``hypotheses and not goal``:
   text when no rational counterexample nearby can be found) and as floats;
 * ``unknown`` or a timeout: **UNKNOWN**, which never counts as a pass.
 
-Square roots written ``x ** (1/2)`` (what :func:`safety.readings.sqrt` gives in the z3 reading)
-are replaced by fresh variables ``r`` with ``x >= 0 => (r >= 0 and r * r = x)`` before solving,
-so the solver sees, and the exported text holds, plain ``QF_NRA``: any SMT-LIB solver can re-run
-the obligation. The exported text is exactly what z3 was given (same assertions, same order).
+Square roots written ``x ** (1/2)`` (what :func:`safety.model.readings.sqrt` gives in the z3
+reading) are replaced by fresh variables ``r`` with ``x >= 0 => (r >= 0 and r * r = x)`` before
+solving, so the solver sees, and the exported text holds, plain ``QF_NRA``: any SMT-LIB solver can
+re-run the obligation. The exported text is exactly what z3 was given (same assertions, same order).
 :meth:`ProofResult.attach` adds the obligation to the running test's evidence.
 """
 
@@ -34,7 +34,7 @@ __all__ = [
     "Bracket",
     "Obligation",
     "ProofResult",
-    "Verdict",
+    "ProofVerdict",
     "bisect_largest",
     "decimal_text",
     "exact_value",
@@ -52,7 +52,7 @@ LOGIC = "QF_NRA"
 _ROOT_PREFIX = "sqrt!"
 
 
-class Verdict(enum.Enum):
+class ProofVerdict(enum.Enum):
     """The outcome of an obligation; only PROVED is a pass."""
 
     PROVED = "PROVED"
@@ -81,7 +81,7 @@ class ProofResult:
 
     name: str
     statement: str
-    verdict: Verdict
+    verdict: ProofVerdict
     smtlib: str
     model: dict[str, Fraction | str] = field(default_factory=dict)
     solver: str = ""
@@ -91,7 +91,7 @@ class ProofResult:
     @property
     def proved(self) -> bool:
         """True iff the verdict is PROVED."""
-        return self.verdict is Verdict.PROVED
+        return self.verdict is ProofVerdict.PROVED
 
     def model_floats(self) -> dict[str, float]:
         """The counterexample as floats (NaN for an irrational value shown as ``root-obj``)."""
@@ -295,12 +295,12 @@ def prove(
     reason = ""
     model: dict[str, Fraction | str] = {}
     if answer == z3.unsat:
-        verdict = Verdict.PROVED
+        verdict = ProofVerdict.PROVED
     elif answer == z3.sat:
-        verdict = Verdict.REFUTED
+        verdict = ProofVerdict.REFUTED
         model = _counterexample(obligation, solver, negated, timeout_ms, seed)
     else:
-        verdict = Verdict.UNKNOWN
+        verdict = ProofVerdict.UNKNOWN
         reason = f"z3 unknown: {solver.reason_unknown()}"
     return ProofResult(
         name=obligation.name,
@@ -375,7 +375,7 @@ def bisect_largest(
         nonlocal runs
         runs += 1
         result = prove_at(value)
-        if result.verdict is Verdict.UNKNOWN:
+        if result.verdict is ProofVerdict.UNKNOWN:
             raise RuntimeError(f"bisect_largest: {result.name} UNKNOWN at {value}: {result.reason}")
         return result
 

@@ -1,10 +1,11 @@
 """The SR-STOP-* proof obligations, built from the runtime's own functions and a configuration.
 
 Each builder takes the stopping parameters in their exact reading
-(:meth:`safety.stopping.StoppingParams.exact`) and returns a :class:`properties.smt.Obligation`
-over z3 reals whose claim is written with the very functions the runtime evaluates
-(:func:`safety.stopping.separation_m`, :func:`safety.stopping.safe_speed_mps`,
-:func:`safety.governor.governed_speed_mps`, :meth:`StoppingParams.margin_for`). The model
+(:meth:`safety.model.stopping.StoppingParams.exact`) and returns a
+:class:`properties.smt.Obligation` over z3 reals whose claim is written with the very functions the
+runtime evaluates (:func:`safety.model.stopping.separation_m`,
+:func:`safety.model.stopping.safe_speed_mps`,
+:func:`safety.model.governor.governed_speed_mps`, :meth:`StoppingParams.margin_for`). The model
 function is a parameter so that a test can hand in a deliberately weakened copy and check that
 the harness notices.
 
@@ -32,9 +33,9 @@ from properties.smt import (
     exact_value,
     prove,
 )
-from safety.governor import governed_speed_mps
-from safety.readings import Real
-from safety.stopping import (
+from safety.model.governor import governed_speed_mps
+from safety.model.readings import Real
+from safety.model.stopping import (
     StoppingParams,
     Tier,
     keymaera_separation_m,

@@ -26,12 +26,12 @@ from evidence.profiles import examples
 from evidence.record import current
 from pipeline.config import SafecaseConfig, config_hash
 from properties.audit_cases import EDIT_KINDS, Edit, write_random_log
-from safety.audit import anchor_path, canonical_json, record_hash
-from safety.audit_verify import AuditStatus, verify_log
-from safety.replay import replay
+from safety.audit.log import anchor_path, canonical_json, record_hash
+from safety.audit.replay import replay
+from safety.audit.verify import AuditStatus, verify_log
 
-AUDIT = ["safety/audit.py", "safety/audit_verify.py"]
-REPLAY = ["safety/audit.py", "safety/replay.py", "safety/decision.py"]
+AUDIT = ["safety/audit/log.py", "safety/audit/verify.py"]
+REPLAY = ["safety/audit/log.py", "safety/audit/replay.py", "safety/model/decision.py"]
 
 edits = st.builds(
     Edit,

@@ -19,11 +19,11 @@ from hypothesis import strategies as st
 
 from evidence.profiles import examples
 from evidence.record import Recorder, current
-from pipeline.classify import Classifier, ModelHashError, card_path, file_sha256
-from pipeline.classify_data import Rows, load_rows
+from pipeline.classify.model import Classifier, ModelHashError, card_path, file_sha256
 from pipeline.config import SafecaseConfig, overridden
 from pipeline.features import N_FEATURES, feature_index
 from pipeline.predict import near_reversal_flags, track_modes
+from pipeline.training.data import Rows, load_rows
 from pipeline.types import Classification, FloatArray, TrackFeatures
 from properties.heldout_roles import row_roles
 from properties.heldout_tables import accuracy_by_role, accuracy_in_bands, errors_by_role
@@ -34,9 +34,9 @@ from properties.oracles.classify import (
     xgboost_margins,
     xgboost_probabilities,
 )
-from safety.envelope import EnvelopeBuilder
+from safety.geometry.envelopes import EnvelopeBuilder
 
-CODE = ["pipeline/classify.py", "pipeline/trees.py"]
+CODE = ["pipeline/classify/model.py", "pipeline/classify/trees.py"]
 HELDOUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "classify" / "heldout.npz"
 # Published per-class accuracy of the source material (the system we implement).
 PUBLISHED = {
@@ -156,7 +156,7 @@ def _safety_margins(
     near, _, _, unknown = track_modes(
         classification, flagged, config.classify.medium_confidence_min
     )
-    builder = EnvelopeBuilder(config)
+    builder = EnvelopeBuilder.from_config(config)
     confidence = np.where(unknown, 0.0, classification.confidence)
     margin, _ = builder.margins(confidence, near)
     top = float(builder.params.margins_m[2])
@@ -274,7 +274,7 @@ def test_heldout_accuracy_against_the_published_figures(
 
 
 @pytest.mark.requirement(
-    "SR-CLS-2", kind="measurement", code=[*CODE, "pipeline/features.py", "pipeline/cluster_ends.py"]
+    "SR-CLS-2", kind="measurement", code=[*CODE, "pipeline/features.py", "pipeline/shape/ends.py"]
 )
 @pytest.mark.xfail(
     reason="the published per-class accuracy is not reached (README: Classification and "
@@ -321,7 +321,7 @@ def _confusion_figure(confusion: np.ndarray, names: tuple[str, ...]) -> object:
     return fig
 
 
-@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify.py"])
+@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify/model.py"])
 def test_model_hash_is_verified_on_load_and_recorded(
     classifier: Classifier, safecase_config: SafecaseConfig, tmp_path: Path, evidence: Recorder
 ) -> None:

@@ -23,18 +23,18 @@ import numpy as np
 import pytest
 
 from evidence.record import Recorder
-from pipeline.classify import Classifier
-from pipeline.cluster import cluster_scan
+from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.features import track_features
-from pipeline.sources.logs import laserscan_topics, read_ros1_bag
-from pipeline.track.tracker import Detections, Tracker, TrackerError
-from pipeline.types import FloatArray, Scan
+from pipeline.perception import Perception
+from pipeline.sources.logs.bags import laserscan_topics
+from pipeline.sources.logs.source import LogSource
+from pipeline.types import FloatArray, Frame
+from safety.model.freshness import is_fresh
 
 # The labelled bags are BSD-3 and copied into the repository (source in the folder's SOURCE.md),
 # so this campaign runs on a fresh clone too.
 LEGS = Path(__file__).resolve().parents[1] / "tests" / "data" / "leg_tracker"
-CODE = ["pipeline/classify.py", "pipeline/features.py"]
+CODE = ["pipeline/classify/model.py", "pipeline/features.py"]
 
 
 def _leg_labels(bag: Path) -> list[FloatArray]:
@@ -56,30 +56,14 @@ def _leg_labels(bag: Path) -> list[FloatArray]:
     return out
 
 
-class _Chain:
-    """Cluster -> track -> features -> classify for one scan stream (laser frame)."""
-
-    def __init__(self, config: SafecaseConfig, classifier: Classifier) -> None:
-        self.config = config
-        self.classifier = classifier
-        self.tracker = Tracker(config.track)
-        self.restarts = 0
-
-    def step(self, scan: Scan) -> tuple[Any, Any, Any, Any]:
-        points, clusters = cluster_scan(scan, self.config)
-        detections = Detections.from_clusters(clusters)
-        try:
-            tracks = self.tracker.step(detections)
-        except TrackerError:  # a gap or a clock step back in the bag: start afresh
-            self.restarts += 1
-            self.tracker = Tracker(self.config.track)
-            tracks = self.tracker.step(detections)
-        features = track_features(tracks, clusters, self.config.predict)
-        return points, clusters, tracks, self.classifier.classify(features)
+def _chain(config: SafecaseConfig, classifier: Classifier) -> Perception:
+    """The perception chain for one scan stream (laser frame: the bags carry no odometry)."""
+    return Perception.from_config(config, classifier=classifier, guard=is_fresh)
 
 
-def _scans(bag: Path, topic: str) -> Iterator[Scan]:
-    return read_ros1_bag(bag, topic)
+def _frames(bag: Path, topic: str) -> Iterator[Frame]:
+    """The bag's frames through the stamp rule every log source follows."""
+    return LogSource(bag, scan_topic=topic).frames()
 
 
 @pytest.mark.requirement("SR-CLS-5", kind="campaign", code=CODE)
@@ -96,10 +80,12 @@ def test_labelled_legs_and_person_false_positives(
     rows = []
     for bag in sorted(LEGS.glob("positive_*_extracted.bag")):
         labels = _leg_labels(bag)
-        chain = _Chain(config, classifier)
+        chain = _chain(config, classifier)
         per_bag: Counter[str] = Counter()
-        for scan, legs in zip(_scans(bag, "/training_scan"), labels, strict=False):
-            points, clusters, tracks, result = chain.step(scan)
+        for frame, legs in zip(_frames(bag, "/training_scan"), labels, strict=False):
+            seen = chain.perceive(frame)
+            points, clusters, tracks = seen.points, seen.clusters, seen.tracked.tracks
+            result = seen.classification
             xy = np.stack([points.x_m, points.y_m], axis=1)
             for leg in legs:
                 near = np.hypot(*(xy - leg).T) <= eps
@@ -127,7 +113,6 @@ def test_labelled_legs_and_person_false_positives(
                 f"{per_bag['scored person'] / max(scored, 1):.1%}",
                 per_bag["no kept cluster at the label"],
                 per_bag["cluster, track not yet scored"],
-                chain.restarts,
             ]
         )
         outcome.update(per_bag)
@@ -141,7 +126,6 @@ def test_labelled_legs_and_person_false_positives(
             "person (of scored legs)",
             "no kept cluster",
             "not yet scored",
-            "tracker restarts",
         ],
         rows,
         caption="a leg counts when a kept cluster has a point within cluster.eps_m of the "
@@ -154,17 +138,18 @@ def test_labelled_legs_and_person_false_positives(
     fp_rows = []
     totals: Counter[str] = Counter()
     for topic in laserscan_topics(negative):
-        chain = _Chain(config, classifier)
+        chain = _chain(config, classifier)
         n_rows = n_person = 0
         ids: set[int] = set()
         person_ids: set[int] = set()
-        for scan in _scans(negative, topic):
-            _, _, tracks, result = chain.step(scan)
-            scored = result.class_index >= 0
-            n_rows += int(scored.sum())
-            hit = scored & (result.class_index == person)
+        for frame in _frames(negative, topic):
+            seen = chain.perceive(frame)
+            tracks, result = seen.tracked.tracks, seen.classification
+            is_scored = result.class_index >= 0
+            n_rows += int(is_scored.sum())
+            hit = is_scored & (result.class_index == person)
             n_person += int(hit.sum())
-            ids.update(tracks.track_id[scored].tolist())
+            ids.update(tracks.track_id[is_scored].tolist())
             person_ids.update(tracks.track_id[hit].tolist())
         fp_rows.append(
             [

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from evidence.profiles import examples
 from evidence.record import current
-from pipeline.cluster import cluster_points, dbscan_points
+from pipeline.cluster.dbscan import cluster_points, dbscan_points
 from pipeline.config import SafecaseConfig, overridden
 from pipeline.points import ScanError, scan_to_points
 from pipeline.types import Scan
@@ -24,7 +24,7 @@ from properties.oracles.tracking import (
 from properties.scenes import random_obstacles, room_scan
 
 CODE_POINTS = ["pipeline/points.py"]
-CODE_CLUSTER = ["pipeline/cluster.py", "pipeline/cluster_shape.py"]
+CODE_CLUSTER = ["pipeline/cluster/dbscan.py", "pipeline/shape/box.py"]
 
 special = st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 0.0, 0.01, 250.0])
 

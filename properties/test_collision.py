@@ -27,11 +27,11 @@ from properties.oracles.geometry import (
     fcl_penetration,
     z3_common_point,
 )
-from safety.contact import contact_pairs
-from safety.geometry import U, convex_polygons, transform_polygons
-from safety.sat import RHO, SatChecker
+from safety.geometry.contact import contact_pairs
+from safety.geometry.polygons import U, convex_polygons, transform_polygons
+from safety.geometry.sat import RHO, SatChecker
 
-SAT = ["safety/sat.py", "safety/geometry.py"]
+SAT = ["safety/geometry/sat.py", "safety/geometry/polygons.py"]
 
 
 def _band(draw: PairDraw, tol: float, slack: float) -> float:
@@ -88,7 +88,7 @@ def test_sat_never_misses_an_overlap(pair: PairDraw, safecase_config: SafecaseCo
     rec.count("SAT false negatives", "count", 0)
 
 
-@pytest.mark.requirement("SR-SAT-2", kind="cross-check", code=["safety/contact.py"])
+@pytest.mark.requirement("SR-SAT-2", kind="cross-check", code=["safety/geometry/contact.py"])
 @settings(max_examples=examples(200))
 @given(pair=polygon_pairs())
 def test_depth_and_distance_match_exact_and_fcl(pair: PairDraw) -> None:
@@ -147,7 +147,7 @@ def _polygon_lists(draw: st.DrawFn) -> tuple[list[np.ndarray], list[np.ndarray]]
     return left, right
 
 
-@pytest.mark.requirement("SR-SAT-6", kind="property", code=["safety/sat.py"])
+@pytest.mark.requirement("SR-SAT-6", kind="property", code=["safety/geometry/sat.py"])
 @settings(max_examples=examples(100))
 @given(lists=_polygon_lists())
 def test_batched_equals_pairwise_and_symmetric(
@@ -174,7 +174,7 @@ def test_batched_equals_pairwise_and_symmetric(
     current().count("pairs", "colliding", int(table.sum()))
 
 
-@pytest.mark.requirement("SR-SAT-6", kind="property", code=["safety/sat.py"])
+@pytest.mark.requirement("SR-SAT-6", kind="property", code=["safety/geometry/sat.py"])
 @settings(max_examples=examples(200))
 @given(
     pair=polygon_pairs(),

@@ -22,11 +22,11 @@ from evidence.timing import compare
 from pipeline.types import BoolArray, ConvexPolygons
 from properties.geometry_cases import AisleWorkload, aisle_workload, random_pairs_workload
 from properties.oracles.geometry import fcl_object
-from safety.sat import SatChecker
-from safety.swept import SweptPathChecker
+from safety.geometry.sat import SatChecker
+from safety.geometry.swept import SweptPathChecker
 
 TARGET_S = 0.5e-3
-CODE = ["safety/sat.py"]
+CODE = ["safety/geometry/sat.py"]
 
 
 def _coords(p: ConvexPolygons) -> np.ndarray:
@@ -217,7 +217,7 @@ def test_random_reference_speed(
     benchmark(random_candidates(*random_pairs)[name])  # type: ignore[operator]
 
 
-@pytest.mark.requirement("SR-SAT-5", kind="measurement", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-5", kind="measurement", code=["safety/geometry/swept.py"])
 def test_whole_planner_check_speed(
     aisle: AisleWorkload, evidence: Recorder, benchmark: object
 ) -> None:

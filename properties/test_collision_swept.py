@@ -18,8 +18,8 @@ from pipeline.errors import GeometryError
 from pipeline.types import ConvexPolygons
 from properties.geometry_cases import convex_points
 from properties.oracles.geometry import exact_point_outside_sq, shapely_polygons
-from safety.geometry import convex_polygons
-from safety.swept import SweptPathChecker, Trajectories, swept_hulls, unicycle_trajectories
+from safety.geometry.polygons import convex_polygons
+from safety.geometry.swept import SweptPathChecker, Trajectories, swept_hulls, unicycle_trajectories
 
 _speeds = st.lists(st.floats(0.0, 2.0), min_size=1, max_size=6)
 
@@ -43,7 +43,7 @@ def _footprint(draw: st.DrawFn) -> ConvexPolygons:
 
 
 @pytest.mark.requirement(
-    "SR-SAT-3", kind="property", code=["safety/swept.py", "safety/geometry.py"]
+    "SR-SAT-3", kind="property", code=["safety/geometry/swept.py", "safety/geometry/polygons.py"]
 )
 @settings(max_examples=examples(60))
 @given(footprint=_footprint(), traj=_trajectories())
@@ -79,7 +79,7 @@ def _obstacles(draw: st.DrawFn) -> ConvexPolygons:
     return convex_polygons(shapes)
 
 
-@pytest.mark.requirement("SR-SAT-3", kind="property", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-3", kind="property", code=["safety/geometry/swept.py"])
 @settings(max_examples=examples(60))
 @given(footprint=_footprint(), obstacles=_obstacles(), data=st.data())
 def test_swept_path_check_matches_geos(
@@ -127,7 +127,7 @@ def test_swept_path_check_matches_geos(
 
 
 @pytest.mark.requirement(
-    "SR-SAT-4", kind="property", code=["safety/geometry.py", "safety/swept.py"]
+    "SR-SAT-4", kind="property", code=["safety/geometry/polygons.py", "safety/geometry/swept.py"]
 )
 @settings(max_examples=examples(100))
 @given(

@@ -21,10 +21,10 @@ from pipeline.config import SafecaseConfig, overridden
 from pipeline.types import ConvexPolygons
 from properties.geometry_cases import convex_points
 from properties.oracles.geometry import shapely_polygons
-from safety.costmap import CostmapBuilder
-from safety.geometry import convex_polygons
+from safety.geometry.costmap import CostmapBuilder
+from safety.geometry.polygons import convex_polygons
 
-CODE = ["safety/costmap.py"]
+CODE = ["safety/geometry/costmap.py"]
 
 
 @st.composite

@@ -15,14 +15,14 @@ from hypothesis import strategies as st
 
 from evidence.profiles import examples
 from evidence.record import current
-from pipeline.drivers import rplidar as rp
-from pipeline.drivers import scip
-from pipeline.drivers.errors import DriverError
-from pipeline.drivers.faults import BYTE_FAULTS, FaultKind, FaultPlan, inject
-from pipeline.drivers.rplidar_capsule import CapsuleFields, decode_capsule, encode_capsule
-from pipeline.drivers.rplidar_stream import RplidarStream
-from pipeline.drivers.scip_stream import ScipStream
-from pipeline.drivers.transport import link_state
+from pipeline.sources.serial import rplidar as rp
+from pipeline.sources.serial import scip
+from pipeline.sources.serial.errors import DriverError
+from pipeline.sources.serial.faults import BYTE_FAULTS, FaultKind, FaultPlan, inject
+from pipeline.sources.serial.rplidar_capsule import CapsuleFields, decode_capsule, encode_capsule
+from pipeline.sources.serial.rplidar_stream import RplidarStream
+from pipeline.sources.serial.scip_stream import ScipStream
+from pipeline.sources.serial.transport import link_state
 from pipeline.types import DriverState
 from properties.driver_streams import (
     LINKS,
@@ -39,8 +39,8 @@ from properties.driver_streams import (
 )
 from properties.oracles.drivers import checked_capsule_distances, checked_node_windows
 
-CODECS = ["pipeline/drivers/rplidar.py", "pipeline/drivers/scip.py"]
-STREAMS = ["pipeline/drivers/rplidar_stream.py", "pipeline/drivers/scip_stream.py"]
+CODECS = ["pipeline/sources/serial/rplidar.py", "pipeline/sources/serial/scip.py"]
+STREAMS = ["pipeline/sources/serial/rplidar_stream.py", "pipeline/sources/serial/scip_stream.py"]
 # Quantisation of each link: (angle tolerance rad, range tolerance m).
 TOLERANCE = {
     "rplidar-standard": (np.deg2rad(1 / 128) + 1e-12, 0.000125 + 1e-12),
@@ -51,7 +51,7 @@ TOLERANCE = {
 
 
 # ------------------------------------------------------------------------- SR-DRV-1
-@pytest.mark.requirement("SR-DRV-1", code=[*CODECS, *STREAMS, "pipeline/drivers/devices.py"])
+@pytest.mark.requirement("SR-DRV-1", code=[*CODECS, *STREAMS, "pipeline/sources/serial/devices.py"])
 @settings(max_examples=examples(60))
 @given(data=st.data(), link=st.sampled_from(LINKS))
 def test_round_trip_through_device_and_stream_decoder(data: st.DataObject, link: Link) -> None:
@@ -95,7 +95,7 @@ def test_requests_and_descriptors_round_trip(
     assert rp.decode_descriptor(rp.encode_descriptor(descriptor)) == descriptor
 
 
-@pytest.mark.requirement("SR-DRV-1", code=["pipeline/drivers/rplidar_capsule.py"])
+@pytest.mark.requirement("SR-DRV-1", code=["pipeline/sources/serial/rplidar_capsule.py"])
 @given(
     start=st.integers(0, 0x7FFF),
     new_scan=st.booleans(),
@@ -112,7 +112,7 @@ def test_express_capsule_fields_round_trip(
     assert back.dtheta_q3.tolist() == dtheta
 
 
-@pytest.mark.requirement("SR-DRV-1", code=["pipeline/drivers/scip.py"])
+@pytest.mark.requirement("SR-DRV-1", code=["pipeline/sources/serial/scip.py"])
 @given(data=st.data(), width=st.sampled_from([2, 3, 4]))
 def test_scip_character_encoding_round_trips(data: st.DataObject, width: int) -> None:
     values = data.draw(st.lists(st.integers(0, (1 << (6 * width)) - 1), max_size=200))
@@ -219,7 +219,7 @@ def test_spliced_garbage_never_yields_data_that_was_not_sent(
 
 
 # ------------------------------------------------------------------------- SR-DRV-3
-@pytest.mark.requirement("SR-DRV-3", code=[*STREAMS, "pipeline/drivers/faults.py"])
+@pytest.mark.requirement("SR-DRV-3", code=[*STREAMS, "pipeline/sources/serial/faults.py"])
 @settings(max_examples=examples(400))
 @given(
     data=st.data(),
@@ -270,7 +270,7 @@ _EVENTS = st.lists(
 )
 
 
-@pytest.mark.requirement("SR-DRV-3", code=["pipeline/drivers/transport.py"])
+@pytest.mark.requirement("SR-DRV-3", code=["pipeline/sources/serial/transport.py"])
 @given(events=_EVENTS, timeout_s=st.floats(0.01, 5.0), probe_s=st.floats(0.0, 10.0))
 def test_health_is_stale_exactly_when_the_last_frame_is_older_than_the_timeout(
     events: list[tuple[str, float]], timeout_s: float, probe_s: float

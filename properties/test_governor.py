@@ -1,6 +1,6 @@
 """The governor never commands a speed it cannot stop from within the free distance (SR-STOP-2).
 
-The proofs are about :func:`safety.governor.governed_speed_mps` itself (the function the
+The proofs are about :func:`safety.model.governor.governed_speed_mps` itself (the function the
 runtime evaluates, read by z3); the properties drive the run-time :class:`Governor` with floats
 and check its commands in exact rational arithmetic, for random distances, closing speeds,
 confidences and parameters anywhere in their configured ranges.
@@ -29,10 +29,10 @@ from properties.stopping_obligations import (
     record_latency_provenance,
     worst_corner_obligation,
 )
-from safety.governor import Governor
-from safety.stopping import separation_m
+from safety.model.governor import Governor
+from safety.model.stopping import separation_m
 
-GOVERNOR = ["safety/governor.py", "safety/stopping.py"]
+GOVERNOR = ["safety/model/governor.py", "safety/model/stopping.py"]
 unit = st.floats(0.0, 1.0, allow_nan=False)
 # Mostly near the robot, where the governor has to slow or stop; sometimes far.
 distance = st.one_of(st.floats(0.0, 3.0), st.floats(0.0, 50.0))
@@ -41,7 +41,7 @@ distance = st.one_of(st.floats(0.0, 3.0), st.floats(0.0, 50.0))
 @pytest.fixture(scope="module")
 def governor(safecase_config: SafecaseConfig) -> Governor:
     """The run-time governor of the configuration under test."""
-    built = Governor(safecase_config)
+    built = Governor.from_config(safecase_config)
     record_latency_provenance(built.params)
     return built
 

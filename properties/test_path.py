@@ -1,9 +1,9 @@
 """Free distance along the path never exceeds the truth (SR-RUN-3).
 
-The governor's proof is about its input distance; :mod:`safety.path` must not hand it more than
-is free. The oracle places the footprint on the continuous path (every 2 mm, and through every
-heading at a corner, where the route pivots) and asks GEOS whether it touches the zone or holds
-a loose point. A second check keeps the distance honest the other way: on a straight piece the
+The governor's proof is about its input distance; :mod:`safety.geometry.path` must not hand it more
+than is free. The oracle places the footprint on the continuous path (every 2 mm, and through every
+heading at a corner, where the route pivots) and asks GEOS whether it touches the zone or holds a
+loose point. A second check keeps the distance honest the other way: on a straight piece the
 footprint does touch the zone within one sample step after the free distance.
 """
 
@@ -20,10 +20,10 @@ from hypothesis import strategies as st
 from evidence.profiles import examples
 from evidence.record import current
 from pipeline.config import SafecaseConfig
-from safety.geometry import convex_polygons
-from safety.path import PathAhead, PathClearance
+from safety.geometry.path import PathAhead, PathClearance
+from safety.geometry.polygons import convex_polygons
 
-CODE = ["safety/path.py"]
+CODE = ["safety/geometry/path.py"]
 ORACLE_STEP_M = 0.002
 
 

@@ -19,14 +19,14 @@ from hypothesis import strategies as st
 
 from evidence.profiles import examples
 from evidence.record import current
-from pipeline.classify import MODEL_CLASSES
+from pipeline.classify.model import MODEL_CLASSES
 from pipeline.config import SafecaseConfig
 from pipeline.predict import predict
 from pipeline.types import ConvexPolygons, PredictionMode
 from properties.prediction_cases import MODES, Case, classification, features_for, make_case
-from safety.envelope import EnvelopeBuilder, body_polygons
+from safety.geometry.envelopes import EnvelopeBuilder, body_polygons
 
-CODE = ["pipeline/predict.py", "safety/envelope.py"]
+CODE = ["pipeline/predict.py", "safety/geometry/envelopes.py"]
 TOL_M = 1e-9
 EXPECTED = {
     "cone": {PredictionMode.CONE},
@@ -64,12 +64,13 @@ def test_true_motion_stays_inside_the_prediction_and_envelope(
         tracks,
         features_for(tracks, mode in ("stop", "reverse")),
         classification(tracks, case.class_name, case.confidence),
-        config,
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     wanted = EXPECTED[mode]
     rows = [i for i in range(result.n) if PredictionMode(int(result.mode[i])) in wanted]
     assert rows, f"{mode}: no prediction row of mode {wanted}; got {result.mode.tolist()}"
-    builder = EnvelopeBuilder(config)
+    builder = EnvelopeBuilder.from_config(config)
     env = builder.build(result, MODEL_CLASSES)
     bodies = body_polygons(result, config.predict.disc_sides)
     sigma_p = math.sqrt(tracks.covariance[0, 0, 0])
@@ -114,7 +115,8 @@ def test_both_near_reversal_modes_are_predicted_and_cover_the_union(
         case.tracks,
         features_for(case.tracks, True),
         classification(case.tracks, "forklift_near_reversal", case.confidence),
-        config,
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     assert sorted(result.mode.tolist()) == [int(PredictionMode.STOP), int(PredictionMode.REVERSE)]
     assert result.near_reversal.all()
@@ -123,8 +125,8 @@ def test_both_near_reversal_modes_are_predicted_and_cover_the_union(
         result.reach_xy_m[result.mode == PredictionMode.REVERSE][0]
     ).convex_hull
     assert rev.buffer(TOL_M).covers(stop)
-    env = EnvelopeBuilder(config).build(result, MODEL_CLASSES)
-    top = float(EnvelopeBuilder(config).params.margins_m[2])
+    env = EnvelopeBuilder.from_config(config).build(result, MODEL_CLASSES)
+    top = float(EnvelopeBuilder.from_config(config).params.margins_m[2])
     assert (env.margin_m == top).all(), "near-reversal rows must carry the near-reversal margin"
     current().count("near-reversal tracks", "both modes predicted")
 
@@ -133,9 +135,13 @@ def _envelope_for(case: Case, config: SafecaseConfig, class_name: str | None, co
     tracks = case.tracks
     near = class_name == "forklift_near_reversal"
     result = predict(
-        tracks, features_for(tracks, near), classification(tracks, class_name, conf), config
+        tracks,
+        features_for(tracks, near),
+        classification(tracks, class_name, conf),
+        config.predict,
+        config.classify.medium_confidence_min,
     )
-    return result, EnvelopeBuilder(config).build(result, MODEL_CLASSES)
+    return result, EnvelopeBuilder.from_config(config).build(result, MODEL_CLASSES)
 
 
 def _union(polygons: ConvexPolygons) -> shapely.Geometry:
@@ -165,7 +171,7 @@ def test_envelope_never_shrinks_as_confidence_drops(
     rec.count("confidence pairs", f"tier {int(high.tier.max())} -> {int(low.tier.max())}")
 
 
-@pytest.mark.requirement("SR-PRED-3", kind="property", code=["safety/envelope.py"])
+@pytest.mark.requirement("SR-PRED-3", kind="property", code=["safety/geometry/envelopes.py"])
 @settings(max_examples=examples(100), deadline=None)
 @given(
     conf=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=30),
@@ -178,7 +184,7 @@ def test_envelope_margins_are_the_stopping_models(
     """The envelope's margin is ``StoppingParams.margin_for`` (the proved function), whatever the
     configured tiers: change them and the envelopes follow."""
     from pipeline.config import overridden
-    from safety.stopping import StoppingParams
+    from safety.model.stopping import StoppingParams
 
     config = overridden(
         safecase_config,
@@ -190,7 +196,7 @@ def test_envelope_margins_are_the_stopping_models(
             }
         },
     )
-    builder = EnvelopeBuilder(config)
+    builder = EnvelopeBuilder.from_config(config)
     c = np.array(conf)
     f = np.array(flags[: len(conf)])
     margin, tier = builder.margins(c, f)
@@ -211,7 +217,7 @@ def test_unscored_tracks_get_the_most_cautious_envelope(
     case = make_case(np.random.default_rng(seed), mode, config)
     fallback_pred, fallback = _envelope_for(case, config, None, 0.0)
     assert fallback_pred.mode.tolist() == [int(PredictionMode.UNKNOWN)]
-    params = EnvelopeBuilder(config).params
+    params = EnvelopeBuilder.from_config(config).params
     assert fallback.closing_speed_mps[0] == float(params.worst_closing_speed_mps)
     assert fallback.margin_m[0] == max(float(m) for m in params.margins_m)
     region = shapely.MultiPoint(fallback_pred.reach_xy_m[0]).convex_hull.buffer(1e-9)

@@ -1,16 +1,16 @@
 """Campaign: the whole perception chain on simulator runs, envelopes against the future (SR-PRED-1).
 
-Each scan goes through clustering, tracking (world frame), features, the configured classifier,
-prediction and envelopes. For every simulated object followed by one or more tracks, the
-object's LiDAR returns during the next ``predict.horizon_s`` (the surfaces the robot will see)
-are checked against the union of the envelopes (all modes) of the tracks that followed it at the
-earlier scan: the costmap holds all of them, and a body the clustering splits (a dolly train's
-trailers, a forklift's tines apart from its mast) is covered by its parts' envelopes together,
-not by any one part's. Reported, not
-asserted: outside the property's assumptions (a reversal faster than the configured 0.6 m/s,
-which the simulator's forklifts do at up to 0.9 m/s; a body seen from one side, so its box
-underestimates it; a track still converging) a return may fall outside, and the campaign
-shows how often. The exact claim is the property in ``test_prediction.py``.
+Each scan goes through the perception chain (:class:`pipeline.perception.Perception`: tracking
+in the world frame, the configured classifier, fusion, prediction) and the envelopes. For every
+simulated object followed by one or more tracks, the object's LiDAR returns during the next
+``predict.horizon_s`` (the surfaces the robot will see) are checked against the union of the
+envelopes (all modes) of the tracks that followed it at the earlier scan: the costmap holds all of
+them, and a body the clustering splits (a dolly train's trailers, a forklift's tines apart from its
+mast) is covered by its parts' envelopes together, not by any one part's. Reported, not asserted:
+outside the property's assumptions (a reversal faster than the configured 0.6 m/s, which the
+simulator's forklifts do at up to 0.9 m/s; a body seen from one side, so its box underestimates it;
+a track still converging) a return may fall outside, and the campaign shows how often. The exact
+claim is the property in ``test_prediction.py``.
 """
 
 from __future__ import annotations
@@ -25,15 +25,17 @@ import shapely
 
 from evidence.profiles import active_profile
 from evidence.record import Recorder
-from pipeline.classify import Classifier
-from pipeline.classify_data import Cycle, RunSpec, perceive
+from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.predict import predict
-from pipeline.sim.truth import CLASS_NAMES
+from pipeline.frames import to_parent
+from pipeline.perception import Perception
+from pipeline.sources.sim.truth import CLASS_NAMES
+from pipeline.training.data import Cycle, RunSpec, perceive
 from pipeline.types import Envelopes, PredictionMode
 from properties.oracles.geometry import shapely_polygons
-from safety.costmap import CostmapBuilder
-from safety.envelope import EnvelopeBuilder
+from safety.geometry.costmap import CostmapBuilder
+from safety.geometry.envelopes import EnvelopeBuilder
+from safety.model.freshness import is_fresh
 
 RUNS_CI = (
     RunSpec("reversing_forklift_aisle", 7, 12.0),
@@ -57,12 +59,9 @@ RUNS_CERTIFY = tuple(
 
 def _returns_world(cycle: Cycle) -> dict[int, np.ndarray]:
     """Each object's returns of this scan in the world frame, by object id."""
-    truth, points = cycle.frame.truth, cycle.points
+    truth, points = cycle.frame.truth, cycle.tracked.points
     owner = truth.beams.owner_id[points.beam_index]
-    sx, sy, syaw = (float(v) for v in truth.scanner_pose)
-    c, s = np.cos(syaw), np.sin(syaw)
-    wx = sx + c * points.x_m - s * points.y_m
-    wy = sy + s * points.x_m + c * points.y_m
+    wx, wy = to_parent(cycle.tracked.pose, points.x_m, points.y_m)
     return {
         int(o): np.stack([wx[owner == o], wy[owner == o]], axis=1)
         for o in np.unique(owner[owner >= 0])
@@ -86,7 +85,7 @@ def _followed_objects(cycle: Cycle, env: Envelopes) -> list[_Followed]:
     shapes = shapely_polygons(env.polygons)
     rows_of: defaultdict[int, list[np.ndarray]] = defaultdict(list)
     label_of: dict[int, int] = {}
-    for i, tid in enumerate(cycle.tracks.track_id):
+    for i, tid in enumerate(cycle.tracked.tracks.track_id):
         obj = int(cycle.object_of[i])
         rows = np.flatnonzero(env.track_id == tid)
         if obj < 0 or not rows.size or cycle.label[i] < 0:
@@ -103,14 +102,15 @@ def _followed_objects(cycle: Cycle, env: Envelopes) -> list[_Followed]:
 
 
 @pytest.mark.requirement(
-    "SR-PRED-1", kind="campaign", code=["pipeline/predict.py", "safety/envelope.py"]
+    "SR-PRED-1", kind="campaign", code=["pipeline/predict.py", "safety/geometry/envelopes.py"]
 )
 def test_future_returns_fall_inside_the_envelopes(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:
     config = safecase_config
     classifier = Classifier.from_config(config.classify)
-    builder = EnvelopeBuilder(config)
+    chain = Perception.from_config(config, classifier=classifier, guard=is_fresh)
+    builder = EnvelopeBuilder.from_config(config)
     steps = round(config.predict.horizon_s / config.track.frame_period_s)
     runs = RUNS_CERTIFY if active_profile() == "certify" else RUNS_CI
     costmap = CostmapBuilder(config.costmap)
@@ -125,7 +125,8 @@ def test_future_returns_fall_inside_the_envelopes(
     tracks_x_returns: defaultdict[tuple[str, str], int] = defaultdict(int)
     for spec in runs:
         window: deque[list[_Followed]] = deque(maxlen=steps)
-        for cycle in perceive(config, spec, {}):
+        chain.reset()
+        for cycle in perceive(config, spec, {}, chain):
             returns = _returns_world(cycle)
             for past in window:  # envelopes of earlier scans within the horizon
                 for followed in past:
@@ -137,18 +138,17 @@ def test_future_returns_fall_inside_the_envelopes(
                     inside[key] += int(hit.sum())
                     total[key] += int(hit.shape[0])
                     tracks_x_returns[key] += followed.n_tracks * int(hit.shape[0])
-            t0 = time.perf_counter()
-            classification = classifier.classify(cycle.features)
-            t1 = time.perf_counter()
-            pred = predict(cycle.tracks, cycle.features, classification, config)
+            assert cycle.perceived is not None  # a full chain perceives
+            pred = cycle.perceived.predictions
             t2 = time.perf_counter()
-            pose = cycle.frame.truth.scanner_pose
-            robot = builder.build(pred, classifier.class_names, (pose[0], pose[1], pose[2]))
+            robot = builder.build(pred, classifier.class_names, cycle.tracked.pose)
             t3 = time.perf_counter()
             costmap.rasterize(robot.polygons)
             t4 = time.perf_counter()
-            for stage, dt in zip(stage_s, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
-                stage_s[stage].append(dt)
+            stage_s["classify"].append(cycle.wall_s["classify"])
+            stage_s["predict"].append(cycle.wall_s["predict"])
+            stage_s["envelopes"].append(t3 - t2)
+            stage_s["costmap"].append(t4 - t3)
             env = builder.build(pred, classifier.class_names)  # world frame, for the check
             window.append(_followed_objects(cycle, env))
     table = []

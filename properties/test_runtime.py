@@ -19,18 +19,18 @@ from hypothesis import strategies as st
 
 from evidence.profiles import active_profile, examples
 from evidence.record import Recorder, current
-from pipeline.classify import Classifier
+from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.sim.ego import ConstantSpeed
-from pipeline.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.ego import ConstantSpeed
+from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.types import Action, RadarDetections, Scan
-from safety.audit_verify import verify_log
-from safety.replay import replay
+from safety.audit.replay import replay
+from safety.audit.verify import verify_log
 from safety.run import RunSummary, contact_speeds, run_scenario, run_simulation
 from safety.run_plot import run_figure
 from safety.runtime import STAGES, CycleInput, Runtime
 
-CODE = ["safety/runtime.py", "safety/run.py", "safety/path.py"]
+CODE = ["safety/runtime.py", "safety/run.py", "safety/geometry/path.py"]
 
 
 def _runs() -> list[tuple[str, int, float]]:
@@ -96,7 +96,7 @@ def test_closed_loop_passive_safety(
     assert not moving, f"contact while moving: {moving}"
 
 
-@pytest.mark.requirement("SR-RUN-1", kind="example", code=["pipeline/sim/simulation.py"])
+@pytest.mark.requirement("SR-RUN-1", kind="example", code=["pipeline/sources/sim/simulation.py"])
 def test_the_contact_detector_fires_without_the_governor(safecase_config: SafecaseConfig) -> None:
     """The campaign's yardstick can fail: at a constant 1 m/s the default scenario's forklift
     is hit with the robot moving."""
@@ -161,7 +161,9 @@ def test_a_failing_stage_or_bad_input_stops_and_the_next_cycle_recovers(
     current().count("faults", fault)
 
 
-@pytest.mark.requirement("SR-RUN-4", kind="example", code=["safety/run.py", "safety/replay.py"])
+@pytest.mark.requirement(
+    "SR-RUN-4", kind="example", code=["safety/run.py", "safety/audit/replay.py"]
+)
 def test_a_closed_loop_run_is_audited_and_replays_bit_for_bit(
     safecase_config: SafecaseConfig, tmp_path: Path, evidence: Recorder
 ) -> None:
@@ -181,22 +183,24 @@ def test_a_closed_loop_run_is_audited_and_replays_bit_for_bit(
     evidence.note(f"{report.n_cycles} cycles replayed exactly; {verdict.describe()}")
 
 
-@pytest.mark.requirement("SR-RUN-4", kind="example", code=["safety/run.py", "pipeline/drivers"])
+@pytest.mark.requirement(
+    "SR-RUN-4", kind="example", code=["safety/run.py", "pipeline/sources/serial/source.py"]
+)
 def test_the_runtime_reads_an_emulated_scanner_over_a_pty(
     safecase_config: SafecaseConfig, tmp_path: Path
 ) -> None:
     from pipeline.config import overridden
-    from pipeline.drivers.devices import RplidarDevice
-    from pipeline.drivers.emulator import Emulator
-    from safety.run import run_device
+    from pipeline.sources.serial.source import EmulatedSource
+    from safety.run import run_audited
 
     bench = overridden(
         safecase_config, {"sim": {"ego_speed_mps": 0.0, "lidar_device": "rplidar_a2"}}
     )
     sim = make_simulation(bench, "crossing_pedestrian", 1, 10.0)
     log = tmp_path / "device.jsonl"
-    with Emulator(RplidarDevice(), sim.scans(), realtime=True, rate_hz=10.0) as emu:
-        outs = list(run_device(bench, emu.path, audit_path=log, max_scans=12))
+    driver = bench.driver.model_copy(update={"protocol": "rplidar", "port_url": "emulated"})
+    source = EmulatedSource(driver, bench.track.frame_period_s, sim.scans(), 10.0)
+    outs = list(run_audited(bench, source, audit_path=log, max_scans=12))
     with_scan = [o for o in outs if o.record.inputs.get("scan")]
     assert len(with_scan) == 12
     assert any(o.command.action is not Action.STOP for o in with_scan)

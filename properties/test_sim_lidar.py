@@ -20,18 +20,18 @@ from evidence.profiles import examples
 from evidence.record import current
 from evidence.timing import compare
 from pipeline.config import default_config, overridden
-from pipeline.sim.ego import ConstantSpeed
-from pipeline.sim.lidar import NO_RETURN_ID, STRUCTURE_ID, Lidar, LidarSpec, ScannerPoses
-from pipeline.sim.raycast import RayCaster
-from pipeline.sim.scenarios import lidar_spec_from_config, make_simulation
-from pipeline.sim.shapes import rectangle, regular_polygon
-from pipeline.sim.world import World
+from pipeline.sources.sim.ego import ConstantSpeed
+from pipeline.sources.sim.lidar import NO_RETURN_ID, STRUCTURE_ID, Lidar, LidarSpec, ScannerPoses
+from pipeline.sources.sim.raycast import RayCaster
+from pipeline.sources.sim.scenarios import lidar_spec_from_config, make_simulation
+from pipeline.sources.sim.shapes import rectangle, regular_polygon
+from pipeline.sources.sim.world import World
 from pipeline.types import FloatArray
 from properties.oracles.sim import first_hits, first_hits_per_ray, vertex_touch
 from properties.sim_strategies import NAMED, RandomScene, lidar_specs, random_scenes
 
 TOL_M = 1e-9
-LIDAR_CODE = ["pipeline/sim/lidar.py", "pipeline/sim/raycast.py"]
+LIDAR_CODE = ["pipeline/sources/sim/lidar.py", "pipeline/sources/sim/raycast.py"]
 
 
 def _all_polygons(world: World, t_s: float) -> list[FloatArray]:

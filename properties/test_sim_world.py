@@ -18,13 +18,13 @@ from hypothesis import strategies as st
 from evidence.profiles import examples
 from evidence.record import current
 from pipeline.config import default_config, overridden
-from pipeline.sim import motion as mo
-from pipeline.sim.ego import ConstantSpeed, Ego, EgoSpec, Route
-from pipeline.sim.objects import FORKLIFT_KINDS
-from pipeline.sim.scenarios import build_scenario, make_simulation
-from pipeline.sim.simulation import SimResult
-from pipeline.sim.truth import STANDSTILL_MPS, LabelRules, ObjectClass, forklift_states
-from pipeline.sim.world import World
+from pipeline.sources.sim import motion as mo
+from pipeline.sources.sim.ego import ConstantSpeed, Ego, EgoSpec, Route
+from pipeline.sources.sim.objects import FORKLIFT_KINDS
+from pipeline.sources.sim.scenarios import build_scenario, make_simulation
+from pipeline.sources.sim.simulation import SimResult
+from pipeline.sources.sim.truth import STANDSTILL_MPS, LabelRules, ObjectClass, forklift_states
+from pipeline.sources.sim.world import World
 from pipeline.types import FloatArray, IntArray
 from properties.oracles.sim import footprint_distances, overlaps_any
 from properties.sim_strategies import NAMED, random_motions
@@ -65,7 +65,11 @@ def _run(name: str, seed: int, duration_s: float = 1.5) -> SimResult:
 
 @pytest.mark.requirement(
     "SR-SIM-2",
-    code=["pipeline/sim/scenarios.py", "pipeline/sim/simulation.py", "pipeline/sim/encounters.py"],
+    code=[
+        "pipeline/sources/sim/scenarios.py",
+        "pipeline/sources/sim/simulation.py",
+        "pipeline/sources/sim/encounters.py",
+    ],
 )
 @settings(max_examples=examples(12))
 @given(name=st.sampled_from(ALL), seed=st.integers(0, 2**32 - 2))
@@ -134,7 +138,9 @@ def _matched(a: FloatArray, b: FloatArray, tol_s: float) -> npt.NDArray[np.bool_
     return np.asarray((np.abs(a[:, None] - b[None, :]) <= tol_s).any(axis=1), dtype=np.bool_)
 
 
-@pytest.mark.requirement("SR-SIM-3", code=["pipeline/sim/truth.py", "pipeline/sim/motion.py"])
+@pytest.mark.requirement(
+    "SR-SIM-3", code=["pipeline/sources/sim/truth.py", "pipeline/sources/sim/motion.py"]
+)
 @settings(max_examples=examples(150))
 @given(
     motion=random_motions(),
@@ -166,7 +172,9 @@ def test_forklift_labels_follow_their_definition(
     rec.count("labels checked", "undecidable at grid resolution (skipped)", int(unclear.sum()))
 
 
-@pytest.mark.requirement("SR-SIM-3", code=["pipeline/sim/truth.py", "pipeline/sim/simulation.py"])
+@pytest.mark.requirement(
+    "SR-SIM-3", code=["pipeline/sources/sim/truth.py", "pipeline/sources/sim/simulation.py"]
+)
 @settings(max_examples=examples(10))
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -214,10 +222,10 @@ def _part_polygons(world: World, times: FloatArray) -> list[FloatArray]:
 @pytest.mark.requirement(
     "SR-SIM-3",
     code=[
-        "pipeline/sim/world.py",
-        "pipeline/sim/scenarios.py",
-        "pipeline/sim/encounters.py",
-        "pipeline/sim/layouts.py",
+        "pipeline/sources/sim/world.py",
+        "pipeline/sources/sim/scenarios.py",
+        "pipeline/sources/sim/encounters.py",
+        "pipeline/sources/sim/layouts.py",
     ],
 )
 @settings(max_examples=examples(20))
@@ -246,7 +254,9 @@ def test_no_object_overlaps_a_static_structure(name: str, seed: int) -> None:
 
 # ------------------------------------------------------------------------- SR-SIM-5 ego
 @pytest.mark.requirement(
-    "SR-SIM-5", kind="cross-check", code=["pipeline/sim/simulation.py", "pipeline/sim/shapes.py"]
+    "SR-SIM-5",
+    kind="cross-check",
+    code=["pipeline/sources/sim/simulation.py", "pipeline/sources/sim/shapes.py"],
 )
 @settings(max_examples=examples(8))
 @given(name=st.sampled_from(ALL), seed=st.integers(0, 2**32 - 1), speed=st.floats(0.5, 1.5))
@@ -282,7 +292,7 @@ def test_separation_record_equals_geos_over_every_step(name: str, seed: int, spe
     current().count("runs", "with contact" if result.contact else "without contact", 1)
 
 
-@pytest.mark.requirement("SR-SIM-5", code=["pipeline/sim/ego.py"])
+@pytest.mark.requirement("SR-SIM-5", code=["pipeline/sources/sim/ego.py"])
 @settings(max_examples=examples(100))
 @given(
     commands=st.lists(

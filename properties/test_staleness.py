@@ -1,6 +1,6 @@
 """Freshness, staleness and fusion (SR-FUS-1..4).
 
-SR-FUS-1: z3 proves, about :func:`pipeline.fusion.is_fresh` itself, that whatever the stamps,
+SR-FUS-1: z3 proves, about :func:`safety.model.freshness.is_fresh` itself, that whatever the stamps,
 the decision time, the maximum age, the skew bound and the rounding guard, a detection the
 guard admits is at most ``max_age`` old in true time whenever its stamp is off by at most the
 skew; and that it admits everything fresher than ``max_age - 2 skew - guard`` (it is not
@@ -29,16 +29,17 @@ from hypothesis import strategies as st
 from evidence.profiles import examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig
-from pipeline.fusion import FRESHNESS_GUARD_S, doppler_update, fuse, is_fresh
+from pipeline.fusion import doppler_update, fuse
 from pipeline.types import Action, Command, RadarDetections, ThermalDetections
 from properties.fusion_cases import ages, epoch, make_tracks, spd_matrix
-from properties.smt import Obligation, Verdict, prove, to_z3
-from safety.governor import Governor
-from safety.monitors import Observation, combine, run_monitors
-from safety.stopping import StoppingParams, Tier
+from properties.smt import Obligation, ProofVerdict, prove, to_z3
+from safety.model.freshness import FRESHNESS_GUARD_S, is_fresh
+from safety.model.governor import Governor
+from safety.model.monitors import Observation, combine, run_monitors
+from safety.model.stopping import StoppingParams, Tier
 
 FUSION = ["pipeline/fusion.py"]
-MONITORS = ["safety/monitors.py", "pipeline/fusion.py"]
+MONITORS = ["safety/model/monitors.py", "pipeline/fusion.py"]
 
 
 def _guard_domain() -> tuple[tuple[z3.ArithRef, ...], list[z3.BoolRef]]:
@@ -129,7 +130,7 @@ def test_guard_without_skew_term_is_refuted() -> None:
 
     result = prove(freshness_sound_obligation(naive))
     result.attach(required=False)
-    assert result.verdict is Verdict.REFUTED
+    assert result.verdict is ProofVerdict.REFUTED
     model = result.model_floats()
     assert model["now_s"] - model["true_capture_s"] > model["max_age_s"]
 
@@ -174,7 +175,9 @@ def test_fuse_never_uses_a_stale_detection(safecase_config: SafecaseConfig, data
             radar_stamps, np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), np.zeros(n)
         )
         thermal = ThermalDetections(stamps, xy[:, 0], xy[:, 1], np.full(n, 0.9))
-        fused = fuse(now, tracks, safecase_config, thermal=thermal, radar=radar)
+        fused = fuse(
+            now, tracks, safecase_config.fusion, guard=is_fresh, thermal=thermal, radar=radar
+        )
         used = [*fused.thermal_index[fused.thermal_index >= 0], *fused.pedestrian_index]
         assert len(used) == len(set(used))
         for i in used:
@@ -258,7 +261,7 @@ def test_stale_scan_or_backwards_clock_stops(
     current().count("clock", "jumped back" if jumped else "monotone")
 
 
-@pytest.mark.requirement("SR-FUS-3", kind="property", code=[*FUSION, "safety/governor.py"])
+@pytest.mark.requirement("SR-FUS-3", kind="property", code=[*FUSION, "safety/model/governor.py"])
 @settings(max_examples=examples(200))
 @given(
     tracks_xy=st.lists(st.tuples(st.floats(-6, 6), st.floats(-6, 6)), max_size=6),
@@ -289,13 +292,20 @@ def test_unmatched_fresh_thermal_becomes_cautious_pedestrian(
         np.full(pxy.shape[0], stamp), pxy[:, 0], pxy[:, 1], np.full(pxy.shape[0], 0.95)
     )
     tracks = make_tracks(now, txy)
-    fused = fuse(now, tracks, safecase_config, confidence=np.full(tracks.n, base), thermal=thermal)
+    fused = fuse(
+        now,
+        tracks,
+        safecase_config.fusion,
+        guard=is_fresh,
+        confidence=np.full(tracks.n, base),
+        thermal=thermal,
+    )
     assert set(np.flatnonzero(outside)) <= set(fused.pedestrian_index.tolist())
     assert fused.counts.n_thermal_matched + fused.counts.n_thermal_only == pxy.shape[0]
     matched = fused.thermal_index >= 0
     assert np.allclose(fused.confidence[matched], min(base + f.confidence_boost, 1.0))
     params = StoppingParams.from_config(safecase_config)
-    governor = Governor(safecase_config)
+    governor = Governor.from_config(safecase_config)
     for conf in fused.pedestrian_confidence:
         assert conf < safecase_config.classify.medium_confidence_min
         # The most cautious tier (the largest margin), and the governor treats the pedestrian

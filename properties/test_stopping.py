@@ -21,7 +21,7 @@ from pipeline.config import SafecaseConfig, validate_config
 from pipeline.errors import ConfigError
 from pipeline.types import Action
 from properties.oracles.stopping import check_against_simulation
-from properties.smt import ProofResult, Verdict, decimal_text, prove
+from properties.smt import ProofResult, ProofVerdict, decimal_text, prove
 from properties.stopping_obligations import (
     horizon_obligation,
     keymaera_obligation,
@@ -34,8 +34,8 @@ from properties.stopping_obligations import (
     tier_result,
     worst_corner_obligation,
 )
-from safety.monitors import Observation, scan_freshness
-from safety.stopping import (
+from safety.model.monitors import Observation, scan_freshness
+from safety.model.stopping import (
     ISO13855_WALKING_SPEED_MPS,
     StoppingParams,
     Tier,
@@ -46,7 +46,7 @@ from safety.stopping import (
     stopping_time_s,
 )
 
-STOPPING = ["safety/stopping.py"]
+STOPPING = ["safety/model/stopping.py"]
 unit = st.floats(0.0, 1.0, allow_nan=False)
 point = st.tuples(unit, unit, unit, unit, unit)
 
@@ -75,7 +75,7 @@ def _f(x: Fraction) -> str:
 def test_tier_margin_covers_stopping_up_to_its_cap(params: StoppingParams, tier: Tier) -> None:
     result = tier_result(params, tier)
     result.attach(required=True)
-    if result.verdict is Verdict.REFUTED:
+    if result.verdict is ProofVerdict.REFUTED:
         cap, margin = params.cap_mps(tier), params.margin_m(tier)
         ce = {k: v for k, v in result.model.items() if isinstance(v, Fraction)}
         needed = separation_m(*ce.values())
@@ -241,7 +241,7 @@ def test_every_counterexample_violates_when_replayed(
     for tier in Tier:
         margin = params.margin_m(tier)
         refuted: list[ProofResult] = []
-        if tier_result(params, tier).verdict is Verdict.REFUTED:
+        if tier_result(params, tier).verdict is ProofVerdict.REFUTED:
             refuted.append(tier_result(params, tier))
         limit = tier_limit(params, tier)
         above = Fraction(1, 10)
@@ -253,7 +253,7 @@ def test_every_counterexample_violates_when_replayed(
             over.attach(required=False)
             refuted.append(over)
         for result in refuted:
-            assert result.verdict is Verdict.REFUTED, result.name
+            assert result.verdict is ProofVerdict.REFUTED, result.name
             values = list(result.model.values())
             assert all(isinstance(x, Fraction) for x in values), result.model
             exact = separation_m(*values)
@@ -317,7 +317,9 @@ def test_margin_by_confidence_is_monotone_in_every_reading(
 
 
 # ------------------------------------------------------------------------- SR-STOP-5
-@pytest.mark.requirement("SR-STOP-5", code=["pipeline/config/__init__.py", "safety/monitors.py"])
+@pytest.mark.requirement(
+    "SR-STOP-5", code=["pipeline/config/__init__.py", "safety/model/monitors.py"]
+)
 @given(
     latency_s=st.floats(0.01, 1.0),
     max_age_s=st.floats(0.01, 1.0),

@@ -19,16 +19,16 @@ from hypothesis import strategies as st
 
 from pipeline.config import SafecaseConfig
 from properties.oracles.stopping import check_against_simulation
-from properties.smt import Verdict, prove
+from properties.smt import ProofVerdict, prove
 from properties.stopping_obligations import (
     governor_sound_obligation,
     keymaera_obligation,
     tier_limit,
     tier_obligation,
 )
-from safety.governor import governed_speed_mps
-from safety.readings import Real
-from safety.stopping import StoppingParams, Tier, keymaera_separation_m, separation_m
+from safety.model.governor import governed_speed_mps
+from safety.model.readings import Real
+from safety.model.stopping import StoppingParams, Tier, keymaera_separation_m, separation_m
 
 unit = st.floats(0.0, 1.0, allow_nan=False)
 
@@ -60,17 +60,17 @@ def params(safecase_config: SafecaseConfig) -> StoppingParams:
     return StoppingParams.from_config(safecase_config).exact()
 
 
-@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/stopping.py"])
+@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/model/stopping.py"])
 def test_weakened_model_is_caught_by_the_keymaera_identity(params: StoppingParams) -> None:
     result = prove(keymaera_obligation(separation_without_latency_m))
     result.attach(required=False)  # expected REFUTED: the weakened copy is wrong
-    assert result.verdict is Verdict.REFUTED
+    assert result.verdict is ProofVerdict.REFUTED
     values = list(result.model.values())
     assert all(isinstance(x, Fraction) for x in values)
     assert separation_without_latency_m(*values) != keymaera_separation_m(*values)
 
 
-@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/stopping.py"])
+@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/model/stopping.py"])
 def test_weakened_model_is_caught_by_the_kinematic_integration(params: StoppingParams) -> None:
     # No shrinking: one disagreeing example is the whole point.
     @settings(max_examples=100, derandomize=True, database=None, phases=[Phase.generate])
@@ -82,7 +82,7 @@ def test_weakened_model_is_caught_by_the_kinematic_integration(params: StoppingP
         weak_cross_check()
 
 
-@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/stopping.py"])
+@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/model/stopping.py"])
 def test_weakened_models_safe_cap_is_refuted_by_the_real_model(params: StoppingParams) -> None:
     weak = tier_limit(params, Tier.HIGH, separation_without_latency_m)
     real = tier_limit(params, Tier.HIGH)
@@ -91,12 +91,12 @@ def test_weakened_models_safe_cap_is_refuted_by_the_real_model(params: StoppingP
     assert weak.bracket.low > real.bracket.high  # the slip promises a higher speed ...
     result = prove(tier_obligation(params, Tier.HIGH, weak.bracket.low))
     result.attach(required=False)
-    assert result.verdict is Verdict.REFUTED  # ... which the real model refutes
+    assert result.verdict is ProofVerdict.REFUTED  # ... which the real model refutes
     values = list(result.model.values())
     assert separation_m(*values) > params.margin_m(Tier.HIGH)
 
 
-@pytest.mark.requirement("SR-STOP-2", kind="example", code=["safety/governor.py"])
+@pytest.mark.requirement("SR-STOP-2", kind="example", code=["safety/model/governor.py"])
 def test_weakened_governor_is_refuted_with_a_replayable_counterexample(
     params: StoppingParams,
 ) -> None:
@@ -107,7 +107,7 @@ def test_weakened_governor_is_refuted_with_a_replayable_counterexample(
         governor_sound_obligation(params, min_moving, speed_fn=governor_without_perception_latency)
     )
     result.attach(required=False)
-    assert result.verdict is Verdict.REFUTED
+    assert result.verdict is ProofVerdict.REFUTED
     d, closing, margin, cap = (result.model[k] for k in result.model)
     assert all(isinstance(x, Fraction) for x in (d, closing, margin, cap))
     v = governor_without_perception_latency(

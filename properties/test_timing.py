@@ -28,20 +28,20 @@ from hypothesis import strategies as st
 from evidence.profiles import active_profile, examples
 from evidence.record import Recorder, current
 from evidence.wcet import PwcetReport, exceedance_plot, measured_latency_bound, pwcet
-from pipeline.classify import Classifier
+from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.types import Action, Command, Scan
 from properties.smt import prove
 from properties.stopping_obligations import tier_obligation
-from safety.audit import AuditWriter
-from safety.monitors import Observation, combine, run_monitors
-from safety.replay import replay
+from safety.audit.log import AuditWriter
+from safety.audit.replay import replay
+from safety.model.monitors import Observation, combine, run_monitors
+from safety.model.stopping import StoppingParams, Tier
 from safety.runtime import CycleInput, Runtime
-from safety.stopping import StoppingParams, Tier
 
 TIMING = ["evidence/wcet.py", "safety/runtime.py"]
-DEADLINE = ["safety/monitors.py", "safety/decision.py"]
+DEADLINE = ["safety/model/monitors.py", "safety/model/decision.py"]
 
 
 def _scenario_scans(config: SafecaseConfig, duration_s: float) -> list[list[Scan]]:
@@ -266,7 +266,7 @@ def test_deadline_miss_stops(
     current().count("cycles", "missed" if missed else "within deadline")
 
 
-@pytest.mark.requirement("SR-TIM-2", kind="example", code=[*DEADLINE, "safety/audit.py"])
+@pytest.mark.requirement("SR-TIM-2", kind="example", code=[*DEADLINE, "safety/audit/log.py"])
 def test_a_stalled_stage_stops_and_the_log_says_why(
     safecase_config: SafecaseConfig, tmp_path: Path
 ) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from evidence.timing import compare
-from pipeline.cluster import cluster_points, dbscan_points
+from pipeline.cluster.dbscan import cluster_points, dbscan_points
 from pipeline.config import SafecaseConfig
 from pipeline.points import scan_to_points
 from pipeline.track import kalman
@@ -37,7 +37,7 @@ def _bench_scan(config: SafecaseConfig) -> ScanPoints:
     return scan_to_points(scan, config.scan)
 
 
-@pytest.mark.requirement("SR-TRK-6", kind="measurement", code=["pipeline/cluster.py"])
+@pytest.mark.requirement("SR-TRK-6", kind="measurement", code=["pipeline/cluster/dbscan.py"])
 def test_clustering_speed_against_sklearn(benchmark: Any, safecase_config: SafecaseConfig) -> None:
     points = _bench_scan(safecase_config)
     eps, ms = safecase_config.cluster.eps_m, safecase_config.cluster.min_samples
@@ -59,7 +59,7 @@ def test_clustering_speed_against_sklearn(benchmark: Any, safecase_config: Safec
     benchmark(dbscan_points, points, eps, ms)
 
 
-@pytest.mark.requirement("SR-TRK-6", kind="measurement", code=["pipeline/cluster.py"])
+@pytest.mark.requirement("SR-TRK-6", kind="measurement", code=["pipeline/cluster/dbscan.py"])
 def test_sklearn_dbscan_reference_speed(benchmark: Any, safecase_config: SafecaseConfig) -> None:
     points = _bench_scan(safecase_config)
     xy = np.stack([points.x_m, points.y_m], axis=1)

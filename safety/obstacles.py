@@ -1,21 +1,21 @@
 """What the governor is given: predicted zones, pedestrians, loose points (SR-RUN-1, -3).
 
 Helpers of :mod:`safety.runtime` that turn the perception stages' outputs into the regions the
-path clearance measures and the rows :class:`safety.decision.GovernorInputs` holds (see the
+path clearance measures and the rows :class:`safety.model.decision.GovernorInputs` holds (see the
 runtime's module docstring for the reasoning), plus the operating-domain check on object speed.
 All regions are in the tracking frame unless they are envelopes (robot frame).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from pipeline.config import PredictSection, SafecaseConfig
-from pipeline.predict import largest_std
+from pipeline.frames import Pose, inverse, to_parent
+from pipeline.track.kalman import largest_std
 from pipeline.types import (
     BoolArray,
     Clusters,
@@ -26,30 +26,25 @@ from pipeline.types import (
     IntArray,
     PredictionMode,
     Predictions,
-    ThermalDetections,
     Tracks,
     TrackStatus,
 )
-from safety.decision import GovernorInputs
-from safety.envelope import EnvelopeBuilder, grown_polygons
-from safety.geometry import convex_polygons, transform_polygons
-from safety.monitors import Verdict
-from safety.path import PathDistances
-from safety.stopping import StoppingParams
+from safety.geometry.envelopes import EnvelopeBuilder, grown_polygons
+from safety.geometry.path import PathDistances
+from safety.geometry.polygons import convex_polygons, transform_polygons
+from safety.model.decision import GovernorInputs
+from safety.model.monitors import MonitorVerdict
+from safety.model.stopping import StoppingParams
 
 __all__ = [
     "bodies_now",
     "faster_than_the_domain",
     "governor_rows",
     "pedestrian_regions",
-    "points_in_frame",
     "stack_polygons",
     "still_zones",
-    "thermal_in_frame",
     "with_columns",
 ]
-
-Pose = tuple[float, float, float]
 
 
 def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
@@ -79,25 +74,11 @@ def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> 
     return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)
 
 
-def thermal_in_frame(thermal: ThermalDetections, pose: Pose) -> ThermalDetections:
-    """Thermal detections moved from the robot frame at ``pose`` into the tracking frame."""
-    x0, y0, yaw = pose
-    if (x0, y0, yaw) == (0.0, 0.0, 0.0):
-        return thermal
-    c, s = math.cos(yaw), math.sin(yaw)
-    return ThermalDetections(
-        stamp_s=thermal.stamp_s,
-        x_m=x0 + c * thermal.x_m - s * thermal.y_m,
-        y_m=y0 + s * thermal.x_m + c * thermal.y_m,
-        confidence=thermal.confidence,
-    )
-
-
 def still_zones(
     pred: Predictions,
     tracks: Tracks,
     clusters: Clusters,
-    pose: tuple[float, ...],
+    pose: Pose,
     predict_section: PredictSection,
 ) -> ConvexPolygons:
     """Predicted zones (no margin), tracking frame: each row's reach region grown by its
@@ -117,12 +98,13 @@ def still_zones(
     # Each hull padded by repeating its last vertex (a zero-length edge).
     pick = start[:, None] + np.minimum(np.arange(size.max())[None, :], size[:, None] - 1)
     hx, hy = clusters.hull_x_m[pick], clusters.hull_y_m[pick]
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    hull = np.stack([pose[0] + c * hx - s * hy, pose[1] + s * hx + c * hy], axis=2)
+    hull = np.stack(to_parent(pose, hx, hy), axis=2)
     return with_columns(zones, idx, grown_polygons(hull, sigma, sides))
 
 
-def faster_than_the_domain(tracks: Tracks, predict_section: PredictSection) -> Verdict | None:
+def faster_than_the_domain(
+    tracks: Tracks, predict_section: PredictSection
+) -> MonitorVerdict | None:
     """STOP when a confirmed track is certainly faster (speed minus ``velocity_sigmas``
     sigmas) than ``predict.max_object_speed_mps``: the predictions assume no such object."""
     pc = predict_section
@@ -132,20 +114,12 @@ def faster_than_the_domain(tracks: Tracks, predict_section: PredictSection) -> V
     if not fast.any():
         return None
     i = int(np.flatnonzero(fast)[np.argmax(low[fast])])
-    return Verdict.stop(
+    return MonitorVerdict.stop(
         "domain:object_speed",
         f"track {int(tracks.track_id[i])} moves at {speed[i]:.2f} m/s (at least "
         f"{low[i]:.2f}), above predict.max_object_speed_mps = {pc.max_object_speed_mps}: "
         "outside the operating domain the predictions assume",
     )
-
-
-def points_in_frame(
-    x_m: FloatArray, y_m: FloatArray, pose: tuple[float, ...]
-) -> tuple[FloatArray, FloatArray]:
-    """Robot-frame points at ``pose`` moved into the tracking frame."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return pose[0] + c * x_m - s * y_m, pose[1] + s * x_m + c * y_m
 
 
 def pedestrian_regions(
@@ -172,9 +146,7 @@ def pedestrian_regions(
     margin, _ = envelopes.margins(fused.pedestrian_confidence, np.zeros(n, dtype=bool))
     reach = radius + walk * config.predict.horizon_s + margin
     env = grown_polygons(centre, reach, sides)
-    x, y, yaw = robot_now
-    c, s = math.cos(-yaw), math.sin(-yaw)
-    env = transform_polygons(env, -(c * x - s * y), -(s * x + c * y), -yaw)
+    env = transform_polygons(env, *inverse(robot_now))
     return zones, env
 
 

@@ -1,21 +1,23 @@
-"""The runtime on its sources: the simulator in closed loop, a serial scanner (SR-RUN-*).
+"""The runtime on any source: one loop over frames, audited (SR-RUN-*).
 
-:func:`run_scenario` drives a named (or given) simulator scenario with the runtime in the loop:
-after every scan the runtime decides, and its command reaches the simulated robot at the
-decision time (the scan's delivery plus the cycle's measured duration) plus the robot's
-actuation latency. The robot's path ahead is its own route; its pose at the scan's stamp is its
-odometry. The result holds the simulator's verdict (contacts, the robot's speed at each contact,
-minimum separations, progress) and the runtime's (commands, reasons, stage timings).
+:func:`run` is THE loop: for every frame of a source (:mod:`pipeline.sources`: the simulator,
+a serial scanner or its emulator, a recorded log) the runtime decides once, and a closed-loop
+source (the simulator) receives the command at the decision time, which its robot follows
+after its actuation latency. The robot's path ahead is its route when the source knows one,
+else straight ahead of its odometry pose (of the identity without odometry: a robot standing
+on a bench). A live source's cycles are charged their measured time; any other is charged
+``runtime.sim_cycle_s`` on its own clock, so a run is reproducible whatever the machine's load
+(``measured_clock`` charges measured time there too).
 
-:func:`run_device` reads a serial scanner (any pyserial URL: a device, a pty, ``socket://``)
-with the robot standing still (identity pose, straight path ahead) and prints and logs a
-command per scan.
+:func:`run_audited` wraps the loop with the audit writer (off the cycle's thread for a live
+source); :func:`run_scenario` runs a named simulator scenario and returns a
+:class:`RunSummary` holding the simulator's verdict (contacts, the robot's speed at each
+contact, minimum separations, progress) beside the runtime's (commands, reasons, timings).
 """
 
 from __future__ import annotations
 
 import contextlib
-import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -24,16 +26,26 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.config import SafecaseConfig
-from pipeline.drivers import Driver
-from pipeline.sim.scenarios import make_simulation
-from pipeline.sim.simulation import SimResult, Simulation
-from pipeline.types import DriverState, FloatArray
-from safety.audit import AuditWriter, BackgroundAuditWriter
-from safety.path import PathAhead
+from pipeline.frames import IDENTITY
+from pipeline.sources import ClosedLoopSource, FrameSource
+from pipeline.sources.sim.scenarios import make_simulation
+from pipeline.sources.sim.simulation import SimResult, Simulation
+from pipeline.sources.sim.source import SimSource
+from pipeline.types import FloatArray, Frame
+from safety.audit.log import AuditWriter, BackgroundAuditWriter
+from safety.geometry.path import PathAhead
+from safety.model.stopping import StoppingParams
 from safety.runtime import CycleInput, CycleOutput, Runtime
-from safety.stopping import StoppingParams
 
-__all__ = ["RunSummary", "run_device", "run_scenario", "run_simulation"]
+__all__ = [
+    "RunSummary",
+    "contact_speeds",
+    "cycle_input",
+    "run",
+    "run_audited",
+    "run_scenario",
+    "run_simulation",
+]
 
 
 @dataclass
@@ -87,50 +99,120 @@ def contact_speeds(result: SimResult | None) -> FloatArray:
     return speeds
 
 
+def cycle_input(frame: Frame, config: SafecaseConfig, charge_s: float | None) -> CycleInput:
+    """What the runtime reads of ``frame``: its path ahead from the route or the pose."""
+    rc = config.runtime
+    pose = frame.pose if frame.pose is not None else IDENTITY
+    if frame.route_m is not None:
+        path = PathAhead.along_polyline(
+            frame.route_m, frame.route_arc_m, rc.path_lookahead_m, rc.path_step_m
+        )
+    else:
+        path = PathAhead.straight(pose, rc.path_lookahead_m, rc.path_step_m)
+    return CycleInput(
+        scan=frame.scan,
+        now_s=frame.received_s,
+        robot_pose=pose,
+        path=path,
+        thermal=frame.thermal,
+        radar=frame.radar,
+        driver=frame.health,
+        charge_s=charge_s,
+    )
+
+
+def run(
+    config: SafecaseConfig,
+    source: FrameSource,
+    runtime: Runtime,
+    *,
+    max_scans: int | None = None,
+    duration_s: float | None = None,
+    measured_clock: bool = False,
+) -> Iterator[CycleOutput]:
+    """One cycle per frame of ``source`` (module docstring), until the source ends, after
+    ``max_scans`` frames with a scan, or once ``duration_s`` of its clock has passed."""
+    charge_s = None if (source.live or measured_clock) else config.runtime.sim_cycle_s
+    closed_loop = source if isinstance(source, ClosedLoopSource) else None
+    first_s: float | None = None
+    n_scans = 0
+    for frame in source.frames():
+        first_s = frame.received_s if first_s is None else first_s
+        out = runtime.step(cycle_input(frame, config, charge_s))
+        if closed_loop is not None:
+            closed_loop.command(out.command.speed_mps, out.record.observation.now_s)
+        yield out
+        n_scans += frame.scan is not None
+        if max_scans is not None and n_scans >= max_scans:
+            return
+        if duration_s is not None and frame.received_s - first_s >= duration_s:
+            return
+
+
+def run_audited(
+    config: SafecaseConfig,
+    source: FrameSource,
+    *,
+    audit_path: Path | None,
+    params: StoppingParams | None = None,
+    runtime: Runtime | None = None,
+    max_scans: int | None = None,
+    duration_s: float | None = None,
+    measured_clock: bool = False,
+) -> Iterator[CycleOutput]:
+    """:func:`run` with one audit record per cycle in ``audit_path`` (none when None).
+
+    A live source's log is written off the cycle's thread (fsync stalls of 15-100 ms here).
+    """
+    rt = runtime if runtime is not None else Runtime(config, params=params)
+    with contextlib.ExitStack() as stack:
+        if audit_path is not None:
+            writer = stack.enter_context(
+                AuditWriter(
+                    audit_path, config, model_hash=rt.classifier.model_sha256, params=rt.params
+                )
+            )
+            if source.live:
+                background = BackgroundAuditWriter(writer)
+                stack.callback(background.close)
+                rt.writer = background
+            else:
+                rt.writer = writer
+        yield from run(
+            config,
+            source,
+            rt,
+            max_scans=max_scans,
+            duration_s=duration_s,
+            measured_clock=measured_clock,
+        )
+
+
 def run_simulation(
     config: SafecaseConfig,
     sim: Simulation,
     *,
     params: StoppingParams | None = None,
-    writer: AuditWriter | None = None,
     runtime: Runtime | None = None,
+    audit_path: Path | None = None,
     progress: Callable[[int, int], None] | None = None,
     measured_clock: bool = False,
 ) -> RunSummary:
-    """Run ``sim`` to its end with the runtime deciding after every scan (module docstring).
-
-    Each cycle takes ``runtime.sim_cycle_s`` on the simulated clock (reproducible whatever the
-    machine's load), or its measured duration with ``measured_clock``.
-    """
-    rt = runtime if runtime is not None else Runtime(config, params=params, writer=writer)
-    summary = RunSummary(sim.name)
-    route = sim.ego_spec.route
-    rc = config.runtime
-    charge_s = None if measured_clock else rc.sim_cycle_s
-    sim.command(sim.ego_spec.initial_speed_mps)
-    busy_until = -np.inf
-    while (frame := sim.next_frame()) is not None:
-        # A scan that arrives while the previous cycle still runs waits for it.
-        delivered = max(frame.observation.stamp_s, busy_until)
-        at_stamp = sim.ego.poses_at(np.array([frame.scan.stamp_s]))[0]
-        path = PathAhead.along_polyline(
-            route.points_m, sim.ego.arc_m, rc.path_lookahead_m, rc.path_step_m
-        )
-        out = rt.step(
-            CycleInput(
-                scan=frame.scan,
-                now_s=delivered,
-                robot_pose=(float(at_stamp[0]), float(at_stamp[1]), float(at_stamp[2])),
-                path=path,
-                charge_s=charge_s,
-            )
-        )
-        issued = busy_until = out.record.observation.now_s
-        sim.ego.command(out.command.speed_mps, issued)
+    """Run ``sim`` to its end with the runtime deciding after every scan (module docstring)."""
+    source = SimSource(sim)
+    summary = RunSummary(sim.name, audit_path=audit_path)
+    for out in run_audited(
+        config,
+        source,
+        audit_path=audit_path,
+        params=params,
+        runtime=runtime,
+        measured_clock=measured_clock,
+    ):
         summary.add(out)
         if progress is not None:
-            progress(summary.cycles, sim.n_scans)
-    summary.sim = sim.result()
+            progress(summary.cycles, source.n_frames)
+    summary.sim = source.result()
     return summary
 
 
@@ -147,76 +229,11 @@ def run_scenario(
 ) -> RunSummary:
     """A named scenario (default ``sim.scenario``) in closed loop, optionally audited."""
     sim = make_simulation(config, name, seed, duration_s)
-    rt = Runtime(config, params=params)
-    with contextlib.ExitStack() as stack:
-        if audit_path is not None:
-            rt.writer = stack.enter_context(
-                AuditWriter(
-                    audit_path, config, model_hash=rt.classifier.model_sha256, params=rt.params
-                )
-            )
-        summary = run_simulation(
-            config, sim, runtime=rt, progress=progress, measured_clock=measured_clock
-        )
-    summary.audit_path = audit_path
-    return summary
-
-
-def run_device(
-    config: SafecaseConfig,
-    url: str,
-    *,
-    audit_path: Path,
-    max_scans: int | None = None,
-    clock: Callable[[], float] | None = None,
-) -> Iterator[CycleOutput]:
-    """Cycles over a serial scanner at ``url`` (robot standing still; module docstring).
-
-    One cycle per received revolution (the newest, when several arrived at once); while none
-    arrives, one cycle without a scan every ``track.frame_period_s``, which the monitors turn
-    into STOP with the driver's state as the reason. Ends after ``max_scans`` scans or once the
-    driver has given up (FAILED).
-    """
-    now = clock or time.monotonic
-    params = StoppingParams.from_config(config)
-    rt = Runtime(config, params=params)
-    driver_config = config.driver.model_copy(update={"port_url": url})
-    with (
-        AuditWriter(
-            audit_path, config, model_hash=rt.classifier.model_sha256, params=params
-        ) as writer,
-        Driver(driver_config, clock=now) as driver,
-    ):
-        # fsync stalls of 15-100 ms here: the log is written off the cycle's thread.
-        background = BackgroundAuditWriter(writer)
-        rt.writer = background
-        try:
-            yield from _device_cycles(rt, driver, config, now, max_scans)
-        finally:
-            background.close()
-
-
-def _device_cycles(
-    rt: Runtime,
-    driver: Driver,
-    config: SafecaseConfig,
-    now: Callable[[], float],
-    max_scans: int | None,
-) -> Iterator[CycleOutput]:
-    """The device loop of :func:`run_device`."""
-    period = config.track.frame_period_s
-    n = 0
-    last = now()
-    while max_scans is None or n < max_scans:
-        scans = driver.poll(period)
-        t = now()
-        if not scans and t - last < period:
-            time.sleep(min(period - (t - last), 0.01))
-            continue
-        last = t
-        scan = scans[-1] if scans else None
-        health = driver.health(t)
-        yield rt.step(CycleInput.standing(scan, t, config, driver=health))
-        n += scan is not None
-        if health.state is DriverState.FAILED:
-            return
+    return run_simulation(
+        config,
+        sim,
+        params=params,
+        audit_path=audit_path,
+        progress=progress,
+        measured_clock=measured_clock,
+    )

@@ -102,6 +102,19 @@ class SafecaseConfig(Section):
         return self
 
     @model_validator(mode="after")
+    def _thermal_only_pedestrians_are_cautious(self) -> SafecaseConfig:
+        # SR-FUS-3: a thermal-only pedestrian must get the most cautious margin tier, so its
+        # confidence must stay below the medium tier's threshold.
+        f, c = self.fusion, self.classify
+        if f.thermal_only_confidence >= c.medium_confidence_min:
+            raise ValueError(
+                f"fusion.thermal_only_confidence ({f.thermal_only_confidence}) must be below "
+                f"classify.medium_confidence_min ({c.medium_confidence_min}) so that "
+                "thermal-only pedestrians get the most cautious margin tier"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _footprint_holds_the_robot(self) -> SafecaseConfig:
         # The governor and the planner check the configured footprint; the simulated robot
         # must fit inside it, or the closed loop would certify a smaller robot than it drives.

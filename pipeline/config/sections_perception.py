@@ -184,7 +184,7 @@ class FusionSection(Section):
     """Thermal / radar fusion into LiDAR tracks with freshness (SR-FUS-1, SR-FUS-3).
 
     A detection is fused only while its age ``now - stamp`` lies in ``[-clock_skew_s,
-    max_age - clock_skew_s]`` (:func:`pipeline.fusion.is_fresh`); ``clock_skew_s`` bounds how
+    max_age - clock_skew_s]`` (:func:`safety.model.freshness.is_fresh`); ``clock_skew_s`` bounds how
     far a sensor's stamps may differ from the decision clock (0: the sensors stamp with the
     decision clock). Fresh thermal detections are matched one-to-one to live tracks within
     ``gate_m``: a match raises the track's confidence by ``confidence_boost`` (at most 1), an

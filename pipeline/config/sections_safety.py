@@ -140,7 +140,7 @@ class MonitorSection(Section):
 
 
 class AuditSection(Section):
-    """Hash-chained audit log (SR-AUD-*): one JSON line per cycle, see :mod:`safety.audit`.
+    """Hash-chained audit log (SR-AUD-*): one JSON line per cycle, see :mod:`safety.audit.log`.
 
     The log is fsynced, and its signed head anchor rewritten, every ``fsync_every_records``
     records and at close. ``signing_key`` is the Ed25519 key (PEM) that signs the anchor; empty
@@ -157,15 +157,15 @@ class RuntimeSection(Section):
     """The cycle loop (SR-RUN-*): path clearance, optional planner and costmap stages.
 
     The governor's free distances are measured along the robot's path ahead, sampled every
-    ``path_step_m`` up to ``path_lookahead_m`` (:mod:`safety.path`); the lookahead should cover
-    the stopping distance at the robot's maximum speed against the fastest closing class, or the
-    governor holds the robot below that speed. Thermal-only pedestrians are discs of
-    ``person_radius_m``. Scan points outside every kept cluster count as static structure of
-    unknown class (``loose_points``: ``"static"``, closing speed ``stopping.static_speed_mps``)
-    or as the fastest class (``"worst"``). ``planner_check`` and ``costmap`` run the swept-path
-    check of the candidate grid and the costmap every cycle (recorded, for a planner; the
-    candidate grid costs 10-30 ms here, so it is off by default). In closed-loop simulation
-    every cycle takes ``sim_cycle_s`` on the simulated clock.
+    ``path_step_m`` up to ``path_lookahead_m`` (:mod:`safety.geometry.path`); the lookahead should
+    cover the stopping distance at the robot's maximum speed against the fastest closing class, or
+    the governor holds the robot below that speed. Thermal-only pedestrians are discs of
+    ``person_radius_m``. Scan points outside every kept cluster count as static structure of unknown
+    class (``loose_points``: ``"static"``, closing speed ``stopping.static_speed_mps``) or as the
+    fastest class (``"worst"``). ``planner_check`` and ``costmap`` run the swept-path check of the
+    candidate grid and the costmap every cycle (recorded, for a planner; the candidate grid costs
+    10-30 ms here, so it is off by default). In closed-loop simulation every cycle takes
+    ``sim_cycle_s`` on the simulated clock.
     """
 
     path_lookahead_m: float = Field(6.0, gt=0.0, le=100.0)

@@ -10,7 +10,7 @@ from pipeline.config.base import Section
 
 
 class SimSection(Section):
-    """Built-in simulator defaults (SR-SIM-*); see pipeline/sim/.
+    """Built-in simulator defaults (SR-SIM-*); see pipeline/sources/sim/.
 
     ``lidar_device`` "generic" uses ``beams`` evenly over ``fov_deg`` at ``scan_rate_hz`` and
     the range limits here; a named device uses its own layout, rate and range limits (the

@@ -15,13 +15,14 @@ re-identification), each on the detections earlier stages left over.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from pipeline.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["assign", "cascade", "gated_costs"]
+__all__ = ["CascadeAssociator", "assign", "cascade", "gated_costs"]
 
 
 def gated_costs(
@@ -88,3 +89,14 @@ def cascade(
         match[rows[r]] = cols[c]
         free[cols[c]] = False
     return match, free
+
+
+@dataclass(frozen=True)
+class CascadeAssociator:
+    """The association role's default: the Hungarian :func:`cascade` over priority groups."""
+
+    def associate(
+        self, cost: FloatArray, groups: Sequence[BoolArray]
+    ) -> tuple[IntArray, BoolArray]:
+        """Each track's matched detection (-1 none) and the detections left free."""
+        return cascade(cost, groups)

@@ -19,6 +19,7 @@ from pipeline.types import FloatArray
 __all__ = [
     "initiate",
     "innovation",
+    "largest_std",
     "predict",
     "process_noise",
     "transition",
@@ -124,3 +125,12 @@ def update(
     ap = p - np.matmul(k, p[:, :_H_ROWS, :])
     p_new = ap - np.matmul(ap[:, :, :_H_ROWS], kt) + r * np.matmul(k, kt)
     return x_new, _symmetric(p_new)
+
+
+def largest_std(cov: FloatArray) -> FloatArray:
+    """Square root of the largest eigenvalue of each symmetric 2x2 matrix in ``cov`` (n, 2, 2)."""
+    a, b, d = cov[:, 0, 0], 0.5 * (cov[:, 0, 1] + cov[:, 1, 0]), cov[:, 1, 1]
+    half_trace = 0.5 * (a + d)
+    root = np.sqrt(np.maximum(0.25 * (a - d) ** 2 + b * b, 0.0))
+    result: FloatArray = np.sqrt(np.maximum(half_trace + root, 0.0))
+    return result

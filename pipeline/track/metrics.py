@@ -1,6 +1,6 @@
 """Tracking quality against ground truth, for any scan source (requirement SR-TRK-5).
 
-Inputs are plain per-frame arrays (:class:`Frame`: object IDs and positions), so the same
+Inputs are plain per-frame arrays (:class:`PositionsFrame`: object IDs and positions), so the same
 functions score the tracker on the synthetic sequences of the tests, on simulator scenarios
 and on labelled logs. Metrics:
 
@@ -29,7 +29,7 @@ from pipeline.track.tracker import Detections, Tracker
 from pipeline.types import FloatArray, IntArray, Tracks, TrackStatus, frozen_array
 
 __all__ = [
-    "Frame",
+    "PositionsFrame",
     "TrackingQuality",
     "compare_reid",
     "evaluate",
@@ -40,7 +40,7 @@ __all__ = [
 
 
 @dataclass(frozen=True, slots=True)
-class Frame:
+class PositionsFrame:
     """Objects at one instant: integer IDs and positions ``xy_m`` (n, 2) in metres."""
 
     ids: IntArray
@@ -51,9 +51,9 @@ class Frame:
         xy = frozen_array(self.xy_m).reshape(-1, 2)
         object.__setattr__(self, "xy_m", xy)
         if xy.shape[0] != self.ids.shape[0]:
-            raise ValueError(f"Frame: {self.ids.shape[0]} ids but {xy.shape[0]} positions")
+            raise ValueError(f"PositionsFrame: {self.ids.shape[0]} ids but {xy.shape[0]} positions")
         if np.unique(self.ids).shape[0] != self.ids.shape[0]:
-            raise ValueError(f"Frame: ids must be unique, got {self.ids.tolist()}")
+            raise ValueError(f"PositionsFrame: ids must be unique, got {self.ids.tolist()}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,8 +99,8 @@ def gospa(
 
 
 def evaluate(
-    truth: Sequence[Frame],
-    hypotheses: Sequence[Frame],
+    truth: Sequence[PositionsFrame],
+    hypotheses: Sequence[PositionsFrame],
     match_threshold_m: float = 1.0,
     gospa_c_m: float = 2.0,
     gospa_p: float = 2.0,
@@ -184,21 +184,23 @@ def evaluate(
 REPORTED = (TrackStatus.CONFIRMED, TrackStatus.LOST)
 
 
-def frame_from_tracks(tracks: Tracks, statuses: tuple[TrackStatus, ...] = REPORTED) -> Frame:
-    """The tracker's output as a :class:`Frame` (by default confirmed and lost tracks)."""
+def frame_from_tracks(
+    tracks: Tracks, statuses: tuple[TrackStatus, ...] = REPORTED
+) -> PositionsFrame:
+    """The tracker's output as a :class:`PositionsFrame` (by default confirmed and lost tracks)."""
     keep = tracks.with_status(*statuses)
-    return Frame(tracks.track_id[keep], tracks.state[keep, :2])
+    return PositionsFrame(tracks.track_id[keep], tracks.state[keep, :2])
 
 
 def run_tracker(
-    frames: Iterable[tuple[Detections, Frame]],
+    frames: Iterable[tuple[Detections, PositionsFrame]],
     config: TrackSection,
     statuses: tuple[TrackStatus, ...] = REPORTED,
-) -> tuple[list[Frame], list[Frame]]:
+) -> tuple[list[PositionsFrame], list[PositionsFrame]]:
     """Track a sequence of (detections, truth) pairs; returns (truth frames, hypotheses)."""
     tracker = Tracker(config)
-    truths: list[Frame] = []
-    hyps: list[Frame] = []
+    truths: list[PositionsFrame] = []
+    hyps: list[PositionsFrame] = []
     for detections, truth in frames:
         tracks = tracker.step(detections)
         truths.append(truth)
@@ -207,7 +209,7 @@ def run_tracker(
 
 
 def compare_reid(
-    frames: Sequence[tuple[Detections, Frame]],
+    frames: Sequence[tuple[Detections, PositionsFrame]],
     config: TrackSection | None = None,
     match_threshold_m: float = 1.0,
 ) -> dict[str, TrackingQuality]:

@@ -11,117 +11,68 @@ history, deceleration estimate, size variance). Every array is bounded by ``trac
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
 from pipeline.config import TrackSection
-from pipeline.errors import SafecaseError
+from pipeline.frames import Pose, checked_pose, to_parent
+from pipeline.roles import Associator
 from pipeline.track import kalman
-from pipeline.track.associate import assign, cascade, gated_costs
+from pipeline.track.associate import CascadeAssociator, assign, gated_costs
 from pipeline.track.lifecycle import FREE, TrackStore, size_compatible
 from pipeline.types import (
-    BoolArray,
     Clusters,
+    CycleCounts,
+    Detections,
     FloatArray,
     IntArray,
+    TrackerError,
     Tracks,
     TrackStatus,
-    frozen_array,
 )
 
-__all__ = ["CycleCounts", "Detections", "Tracker", "TrackerError"]
+__all__ = ["CycleCounts", "Detections", "Tracker", "TrackerError", "detections_in_frame"]
+# CycleCounts, Detections and TrackerError live in pipeline.types (shared with the roles).
 
 
-class TrackerError(SafecaseError, ValueError):
-    """Input the tracker refuses: a clock that ran backwards or non-finite detections."""
+def detections_in_frame(clusters: Clusters, pose: Pose) -> Detections:
+    """The clusters' centroids and ends moved from the scan's frame into the tracking frame.
 
-
-@dataclass(frozen=True, slots=True)
-class Detections:
-    """What the tracker consumes from one scan: centroids and box sizes (struct of arrays).
-
-    Optionally the clusters' ends: ``end_xy_m`` (n, 4) ``[x0, y0, x1, y1]`` and
-    ``end_occluded`` (n, 2) (:mod:`pipeline.cluster_ends`). The tracker only keeps them in the
-    tracks' histories for the classifier's features; without them those entries are NaN.
+    ``pose`` places the scan's frame in the tracking frame at the scan's stamp (odometry at run
+    time, the simulator's ground truth in training); box sizes and occlusion flags are
+    unchanged by a rigid motion. Raises :class:`pipeline.frames.FrameError` for a pose that is
+    not finite.
     """
-
-    stamp_s: float
-    x_m: FloatArray
-    y_m: FloatArray
-    width_m: FloatArray
-    length_m: FloatArray
-    end_xy_m: FloatArray | None = None
-    end_occluded: BoolArray | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("x_m", "y_m", "width_m", "length_m"):
-            object.__setattr__(self, name, frozen_array(getattr(self, name)))
-        n = self.x_m.shape
-        if self.y_m.shape != n or self.width_m.shape != n or self.length_m.shape != n:
-            raise TrackerError("Detections: x_m, y_m, width_m and length_m must match in shape")
-        if (self.end_xy_m is None) != (self.end_occluded is None):
-            raise TrackerError("Detections: end_xy_m and end_occluded come together or not at all")
-        if self.end_xy_m is not None and self.end_occluded is not None:
-            object.__setattr__(self, "end_xy_m", frozen_array(self.end_xy_m))
-            object.__setattr__(self, "end_occluded", frozen_array(self.end_occluded, np.bool_))
-            if self.end_xy_m.shape != (*n, 4) or self.end_occluded.shape != (*n, 2):
-                raise TrackerError(
-                    f"Detections: end_xy_m must have shape {(*n, 4)} and end_occluded {(*n, 2)}"
-                )
-
-    @classmethod
-    def from_clusters(cls, clusters: Clusters) -> Detections:
-        """Centroids, oriented-box sizes and ends of the kept clusters (scanner frame)."""
-        return cls(
-            clusters.stamp_s,
-            clusters.centroid_x_m,
-            clusters.centroid_y_m,
-            clusters.width_m,
-            clusters.length_m,
-            np.stack([clusters.end_x_m, clusters.end_y_m], axis=2).reshape(-1, 4),
-            clusters.end_occluded,
-        )
-
-    def ends(self) -> tuple[FloatArray, FloatArray]:
-        """``(end_xy_m, occluded)``, (n, 4) and (n, 2) floats (1.0 occluded, 0.0 free); NaN
-        for detections without ends."""
-        if self.end_xy_m is None or self.end_occluded is None:
-            return np.full((self.n, 4), np.nan), np.full((self.n, 2), np.nan)
-        return self.end_xy_m, self.end_occluded.astype(np.float64)
-
-    @property
-    def n(self) -> int:
-        """Number of detections."""
-        return int(self.x_m.shape[0])
-
-
-@dataclass(frozen=True, slots=True)
-class CycleCounts:
-    """What one tracker cycle did (read by the evidence and the runtime monitors)."""
-
-    n_detections: int
-    n_detections_dropped: int
-    n_matched_confirmed: int
-    n_matched_tentative: int
-    n_reidentified: int
-    n_born: int
-    n_births_refused: int
-    n_tentative_dropped: int
-    n_dormant_deleted: int
-    n_lost_deleted: int
-    n_live: int
-    n_dormant: int
+    pose = checked_pose(pose)
+    local = Detections.from_clusters(clusters)
+    assert local.end_xy_m is not None  # from_clusters always carries the ends
+    # Centroids and both ends as one (n, 3, 2) block of points, moved by the same rotation.
+    xy = np.concatenate(
+        [np.stack([local.x_m, local.y_m], axis=1)[:, None, :], local.end_xy_m.reshape(-1, 2, 2)],
+        axis=1,
+    )
+    moved = np.stack(to_parent(pose, xy[..., 0], xy[..., 1]), axis=2)
+    return replace(
+        local, x_m=moved[:, 0, 0], y_m=moved[:, 0, 1], end_xy_m=moved[:, 1:].reshape(-1, 4)
+    )
 
 
 class Tracker:
     """Stateful tracker over one scan stream (configured by the ``track`` section)."""
 
-    def __init__(self, config: TrackSection) -> None:
+    def __init__(self, config: TrackSection, associator: Associator | None = None) -> None:
         self.config = config
+        self.associator: Associator = associator if associator is not None else CascadeAssociator()
         self.store = TrackStore(config)
         self.last_stamp_s: float | None = None
         self.last_counts: CycleCounts | None = None
+
+    def reset(self) -> None:
+        """Forget every track and the clock: the next step starts afresh."""
+        self.store = TrackStore(self.config)
+        self.last_stamp_s = None
+        self.last_counts = None
 
     def step(self, detections: Detections) -> Tracks:
         """Run one cycle on ``detections`` (stamped in seconds) and return the snapshot."""
@@ -160,7 +111,7 @@ class Tracker:
         )
         status = st.status[live]
         confirmed = (status == TrackStatus.CONFIRMED) | (status == TrackStatus.LOST)
-        match, free = cascade(cost, [confirmed, status == TrackStatus.TENTATIVE])
+        match, free = self.associator.associate(cost, [confirmed, status == TrackStatus.TENTATIVE])
         hit_slots = live[match >= 0]
         hit_dets = match[match >= 0]
         n_confirmed_hits = int(np.count_nonzero(confirmed & (match >= 0)))

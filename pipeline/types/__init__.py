@@ -18,6 +18,7 @@ from pipeline.types.core import (
     frozen_array,
 )
 from pipeline.types.drivers import DriverHealth, DriverState
+from pipeline.types.frame import Frame, Pose
 from pipeline.types.fusion import FusedTracks, FusionCounts, RadarDetections, ThermalDetections
 from pipeline.types.geometry import ConvexPolygons, SweptPathReport
 from pipeline.types.perception import (
@@ -30,8 +31,12 @@ from pipeline.types.perception import (
 from pipeline.types.tracking import (
     ClusterCounts,
     Clusters,
+    CycleCounts,
+    Detections,
     DropCounts,
+    Partition,
     ScanPoints,
+    TrackerError,
     Tracks,
     TrackStatus,
 )
@@ -44,14 +49,19 @@ __all__ = [
     "Clusters",
     "Command",
     "ConvexPolygons",
+    "CycleCounts",
+    "Detections",
     "DriverHealth",
     "DriverState",
     "DropCounts",
     "Envelopes",
     "FloatArray",
+    "Frame",
     "FusedTracks",
     "FusionCounts",
     "IntArray",
+    "Partition",
+    "Pose",
     "PredictionMode",
     "Predictions",
     "RadarDetections",
@@ -61,6 +71,7 @@ __all__ = [
     "ThermalDetections",
     "TrackFeatures",
     "TrackStatus",
+    "TrackerError",
     "Tracks",
     "freeze_fields",
     "frozen_array",

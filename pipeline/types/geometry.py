@@ -24,7 +24,7 @@ class ConvexPolygons:
     far, in metres, a point given to the normalisation that built the polygon may lie outside
     it (rounding in the hull); the collision check adds it to its clearance threshold.
 
-    Build these with :func:`safety.geometry.convex_polygons` (which normalises: hull,
+    Build these with :func:`safety.geometry.polygons.convex_polygons` (which normalises: hull,
     counter-clockwise order, duplicates and collinear points removed); this constructor only
     checks shapes, finiteness and padding.
     """

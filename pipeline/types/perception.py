@@ -107,7 +107,7 @@ class Predictions:
     of a disc about the reference point that holds the object's body, so the region grown by
     it holds the whole object. ``speed_mps`` is the speed bound the region was built with and
     ``heading_rad`` the direction it was built around (NaN when none: a disc).
-    ``safety.envelope`` turns rows into polygons.
+    ``safety.geometry.envelopes`` turns rows into polygons.
     """
 
     stamp_s: float
@@ -162,10 +162,10 @@ class Envelopes:
     One convex polygon per prediction row, in the frame the envelopes were built for (the robot
     frame for the swept-path check). Per polygon: ``track_id``, the prediction ``mode``,
     ``class_index`` (-1 unscored), the margin ``tier`` (0 high, 1 medium, 2 near-reversal:
-    :class:`safety.stopping.Tier` order) and ``margin_m`` chosen by the stopping model's
+    :class:`safety.model.stopping.Tier` order) and ``margin_m`` chosen by the stopping model's
     ``margin_for``, the ``closing_speed_mps`` the governor must assume, the classification
     ``confidence`` (0 when unscored) and the ``near_reversal`` flag. The arrays are exactly
-    what :meth:`safety.governor.Governor.command` takes per obstacle.
+    what :meth:`safety.model.governor.Governor.command` takes per obstacle.
     """
 
     stamp_s: float

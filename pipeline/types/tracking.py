@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.types.core import BoolArray, FloatArray, IntArray, freeze_fields
+from pipeline.errors import SafecaseError
+from pipeline.types.core import BoolArray, FloatArray, IntArray, freeze_fields, frozen_array
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +83,26 @@ class ClusterCounts:
 
 
 @dataclass(frozen=True, slots=True)
+class Partition:
+    """Which kept cluster each point of one scan belongs to (SR-TRK-2).
+
+    ``point_labels`` holds, for every point of the :class:`ScanPoints` it was made from, its
+    kept cluster index in ``0 .. n_clusters - 1`` or -1 (noise, or a cluster dropped by the
+    size filter or the cap); ``counts`` says what was found and discarded.
+    """
+
+    stamp_s: float
+    point_labels: IntArray
+    n_clusters: int
+    counts: ClusterCounts
+
+    def __post_init__(self) -> None:
+        freeze_fields(self, ("point_labels",), np.int64)
+        if self.point_labels.ndim != 1 or int(self.point_labels.max(initial=-1)) >= self.n_clusters:
+            raise ValueError("Partition: point_labels must be 1-D labels below n_clusters")
+
+
+@dataclass(frozen=True, slots=True)
 class Clusters:
     """Kept clusters of one scan with their geometry, struct of arrays (SR-TRK-2).
 
@@ -95,7 +116,7 @@ class Clusters:
     or -1 (noise, or a cluster dropped by the size filter or the cap). ``end_x_m`` and
     ``end_y_m`` (n, 2) are the cluster's first and last point in the counter-clockwise sweep
     (column 0 where the sweep enters the cluster); ``end_occluded`` (n, 2) says whether the
-    beam next to that end returned a point nearer than it (:mod:`pipeline.cluster_ends`): the
+    beam next to that end returned a point nearer than it (:mod:`pipeline.shape.ends`): the
     object may go on behind.
     """
 
@@ -260,3 +281,84 @@ class Tracks:
     def with_status(self, *statuses: TrackStatus) -> BoolArray:
         """Mask of the tracks whose status is one of ``statuses``."""
         return np.isin(self.status, [int(s) for s in statuses])
+
+
+class TrackerError(SafecaseError, ValueError):
+    """Input the tracker refuses: a clock that ran backwards or non-finite detections."""
+
+
+@dataclass(frozen=True, slots=True)
+class Detections:
+    """What the tracker consumes from one scan: centroids and box sizes (struct of arrays).
+
+    Optionally the clusters' ends: ``end_xy_m`` (n, 4) ``[x0, y0, x1, y1]`` and
+    ``end_occluded`` (n, 2) (:mod:`pipeline.shape.ends`). The tracker only keeps them in the
+    tracks' histories for the classifier's features; without them those entries are NaN.
+    """
+
+    stamp_s: float
+    x_m: FloatArray
+    y_m: FloatArray
+    width_m: FloatArray
+    length_m: FloatArray
+    end_xy_m: FloatArray | None = None
+    end_occluded: BoolArray | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "width_m", "length_m"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        n = self.x_m.shape
+        if self.y_m.shape != n or self.width_m.shape != n or self.length_m.shape != n:
+            raise TrackerError("Detections: x_m, y_m, width_m and length_m must match in shape")
+        if (self.end_xy_m is None) != (self.end_occluded is None):
+            raise TrackerError("Detections: end_xy_m and end_occluded come together or not at all")
+        if self.end_xy_m is not None and self.end_occluded is not None:
+            object.__setattr__(self, "end_xy_m", frozen_array(self.end_xy_m))
+            object.__setattr__(self, "end_occluded", frozen_array(self.end_occluded, np.bool_))
+            if self.end_xy_m.shape != (*n, 4) or self.end_occluded.shape != (*n, 2):
+                raise TrackerError(
+                    f"Detections: end_xy_m must have shape {(*n, 4)} and end_occluded {(*n, 2)}"
+                )
+
+    @classmethod
+    def from_clusters(cls, clusters: Clusters) -> Detections:
+        """Centroids, oriented-box sizes and ends of the kept clusters (scanner frame)."""
+        return cls(
+            clusters.stamp_s,
+            clusters.centroid_x_m,
+            clusters.centroid_y_m,
+            clusters.width_m,
+            clusters.length_m,
+            np.stack([clusters.end_x_m, clusters.end_y_m], axis=2).reshape(-1, 4),
+            clusters.end_occluded,
+        )
+
+    def ends(self) -> tuple[FloatArray, FloatArray]:
+        """``(end_xy_m, occluded)``, (n, 4) and (n, 2) floats (1.0 occluded, 0.0 free); NaN
+        for detections without ends."""
+        if self.end_xy_m is None or self.end_occluded is None:
+            return np.full((self.n, 4), np.nan), np.full((self.n, 2), np.nan)
+        return self.end_xy_m, self.end_occluded.astype(np.float64)
+
+    @property
+    def n(self) -> int:
+        """Number of detections."""
+        return int(self.x_m.shape[0])
+
+
+@dataclass(frozen=True, slots=True)
+class CycleCounts:
+    """What one tracker cycle did (read by the evidence and the runtime monitors)."""
+
+    n_detections: int
+    n_detections_dropped: int
+    n_matched_confirmed: int
+    n_matched_tentative: int
+    n_reidentified: int
+    n_born: int
+    n_births_refused: int
+    n_tentative_dropped: int
+    n_dormant_deleted: int
+    n_lost_deleted: int
+    n_live: int
+    n_dormant: int

@@ -1,7 +1,7 @@
 """XGBoost's own prediction as the oracle of the runtime classifier (test-only; SR-CLS-1, -4).
 
-The runtime evaluates the trees itself (:mod:`pipeline.trees`); these adapters load the same
-model file into an ``xgboost.Booster`` and predict with XGBoost's two public paths:
+The runtime evaluates the trees itself (:mod:`pipeline.classify.trees`); these adapters load the
+same model file into an ``xgboost.Booster`` and predict with XGBoost's two public paths:
 ``Booster.predict(DMatrix)`` and ``Booster.inplace_predict``. One thread, so that timings are
 comparable with the single-threaded runtime and nothing depends on scheduling.
 """

@@ -1,6 +1,6 @@
 """Independent references for the simulator (SR-SIM-*): GEOS through shapely.
 
-Nothing here shares code with ``pipeline.sim`` beyond reading its data: the rays are shapely
+Nothing here shares code with ``pipeline.sources.sim`` beyond reading its data: the rays are shapely
 line strings, the scene is the union of the polygons' boundaries as GEOS sees them, and the
 first hit is GEOS's distance from the ray's origin to the ray-scene intersection.
 """

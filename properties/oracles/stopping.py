@@ -1,10 +1,10 @@
 """Reference for the stopping model: integrate the motion numerically with scipy (SR-STOP-1).
 
-Independent of :mod:`safety.stopping`'s closed form: the robot's state (position, speed) and the
-obstacle's travel are integrated by scipy's adaptive Runge-Kutta solver (``solve_ivp``, RK45),
-first for the reaction latency at the latency acceleration, then braking until an event finds
-the moment the speed reaches zero. What the closed form and the integration share is only the
-physical set-up (constant acceleration, then constant braking, obstacle at constant speed).
+Independent of :mod:`safety.model.stopping`'s closed form: the robot's state (position, speed) and
+the obstacle's travel are integrated by scipy's adaptive Runge-Kutta solver (``solve_ivp``, RK45),
+first for the reaction latency at the latency acceleration, then braking until an event finds the
+moment the speed reaches zero. What the closed form and the integration share is only the physical
+set-up (constant acceleration, then constant braking, obstacle at constant speed).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from pipeline.types import FloatArray
-from safety.readings import Real
-from safety.stopping import StoppingParams, stopping_time_s
+from safety.model.readings import Real
+from safety.model.stopping import StoppingParams, stopping_time_s
 
 __all__ = ["SimulatedStop", "check_against_simulation", "simulate_stop"]
 

@@ -20,7 +20,7 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from sklearn.cluster import DBSCAN
 
-from pipeline.cluster import DbscanResult
+from pipeline.cluster.dbscan import DbscanResult
 from pipeline.types import BoolArray, FloatArray, IntArray
 
 __all__ = [

@@ -19,7 +19,7 @@ from evidence.wcet import (
 )
 from pipeline.config import default_config
 from pipeline.errors import EvidenceError
-from safety.stopping import StoppingParams
+from safety.model.stopping import StoppingParams
 
 WCET = ["evidence/wcet.py"]
 
@@ -109,7 +109,7 @@ def test_bad_samples_are_named() -> None:
         pwcet(np.ones(1000), exceedance_prob=2.0)
 
 
-@pytest.mark.requirement("SR-TIM-1", kind="example", code=[*WCET, "safety/stopping.py"])
+@pytest.mark.requirement("SR-TIM-1", kind="example", code=[*WCET, "safety/model/stopping.py"])
 def test_bound_feeds_the_stopping_model_seam() -> None:
     rng = np.random.default_rng(6)
     samples = 2e-3 + rng.gamma(4.0, 2e-4, 5000)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import xgboost as xgb
 
-from pipeline.classify import (
+from pipeline.classify.model import (
     MODEL_CLASSES,
     Classifier,
     ModelError,
@@ -19,9 +19,9 @@ from pipeline.classify import (
     model_provenance,
     unscored,
 )
+from pipeline.classify.trees import ModelFormatError, TreeEnsemble
 from pipeline.config import default_config, overridden
 from pipeline.features import FEATURE_NAMES, N_FEATURES
-from pipeline.trees import ModelFormatError, TreeEnsemble
 from pipeline.types import TrackFeatures, TrackStatus
 
 
@@ -54,7 +54,7 @@ def _write(folder: Path, data: bytes, classes: tuple[str, ...]) -> Path:
     return path
 
 
-@pytest.mark.requirement("SR-CLS-1", kind="cross-check", code=["pipeline/trees.py"])
+@pytest.mark.requirement("SR-CLS-1", kind="cross-check", code=["pipeline/classify/trees.py"])
 @pytest.mark.parametrize(("depth", "bitmask"), [(3, True), (6, True), (8, False)])
 def test_both_paths_equal_xgboost_on_toy_models(depth: int, bitmask: bool) -> None:
     data = _toy_model(depth, 6 if depth > 6 else 12)
@@ -162,7 +162,7 @@ code = ["m.py"]
 """
 
 
-@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify.py"])
+@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify/model.py"])
 def test_every_evidence_bundle_records_the_model_hash(pytester: pytest.Pytester) -> None:
     """Whatever the session runs, its bundle's provenance names the model and its hash."""
     pytester.makefile(".toml", catalogue=_MINI_CATALOGUE)

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.classify_data import DRILL, RunSpec
-from pipeline.classify_plan import NAMED, cached_rows, data_plan, gather_rows, plan_blocks
 from pipeline.config import SafecaseConfig
+from pipeline.training.data import DRILL, RunSpec
+from pipeline.training.plan import NAMED, cached_rows, data_plan, gather_rows, plan_blocks
 
-CODE = ["pipeline/classify_plan.py"]
+CODE = ["pipeline/training/plan.py"]
 
 
 def test_blocks_follow_scenario_duration_and_seed_range() -> None:

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pipeline.classify import Classifier, card_path, file_sha256
-from pipeline.classify_data import load_rows
-from pipeline.classify_plan import data_plan
-from pipeline.classify_train import class_weights
-from safety.cli import app
+from evidence.cli.main import app
+from pipeline.classify.model import Classifier, card_path, file_sha256
+from pipeline.training.data import load_rows
+from pipeline.training.plan import data_plan
+from pipeline.training.train import class_weights
 
 TINY = [
     "--named-seeds",
@@ -41,7 +41,7 @@ def _train(folder: Path, config: Path, *extra: str) -> Path:
     return folder / "classifier.json"
 
 
-@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify_train.py"])
+@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/training/train.py"])
 def test_training_is_deterministic_and_writes_a_verified_model(tmp_path: Path) -> None:
     config = tmp_path / "tiny.toml"
     config.write_text("[classify]\nn_estimators = 3\n")

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.cluster import cluster_scan
-from pipeline.cluster_ends import OCCLUSION_MARGIN_M
+from pipeline.cluster.dbscan import cluster_scan
 from pipeline.config import default_config
+from pipeline.shape.ends import OCCLUSION_MARGIN_M
 from pipeline.types import Clusters, Scan
 
 N_BEAMS = 1080

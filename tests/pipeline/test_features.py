@@ -8,7 +8,7 @@ from dataclasses import fields, replace
 import numpy as np
 import pytest
 
-from pipeline.cluster import cluster_scan
+from pipeline.cluster.dbscan import cluster_scan
 from pipeline.config import default_config
 from pipeline.features import (
     END_FEATURE_NAMES,
@@ -20,11 +20,10 @@ from pipeline.features import (
     GROUP_SPEED_MPS,
     MEMORY_FEATURE_NAMES,
     SOURCE_FEATURE_NAMES,
-    detections_in_frame,
     feature_index,
     track_features,
 )
-from pipeline.track.tracker import Tracker
+from pipeline.track.tracker import Tracker, detections_in_frame
 from pipeline.types import Scan, Tracks
 from properties.prediction_cases import tracks_of
 
@@ -153,7 +152,7 @@ def test_detections_move_into_the_frame() -> None:
         ]
     )
     assert moved.end_occluded.tolist() == clusters.end_occluded.tolist()
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match="expected three finite numbers"):
         detections_in_frame(clusters, (math.nan, 0.0, 0.0))
 
 

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.cluster import cluster_points, cluster_scan, dbscan_points, neighbour_pairs
-from pipeline.cluster_shape import convex_hulls
+from pipeline.cluster.dbscan import cluster_points, cluster_scan, dbscan_points, neighbour_pairs
 from pipeline.config import default_config, overridden
 from pipeline.points import ScanError, scan_to_points
+from pipeline.shape.box import convex_hulls
 from pipeline.types import Scan
 
 

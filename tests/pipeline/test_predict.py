@@ -10,8 +10,10 @@ import pytest
 import shapely
 
 from pipeline.config import default_config
+from pipeline.constructive import disc_points, sector_points
 from pipeline.features import feature_index
-from pipeline.predict import disc_points, largest_std, near_reversal_flags, predict, sector_points
+from pipeline.predict import near_reversal_flags, predict
+from pipeline.track.kalman import largest_std
 from pipeline.types import PredictionMode, TrackStatus
 from properties.prediction_cases import classification, features_for, tracks_of
 
@@ -79,7 +81,13 @@ def test_modes_follow_class_confidence_and_flag(
 ) -> None:
     config = default_config()
     tracks = _one()
-    result = predict(tracks, features_for(tracks, near), classification(tracks, name, conf), config)
+    result = predict(
+        tracks,
+        features_for(tracks, near),
+        classification(tracks, name, conf),
+        config.predict,
+        config.classify.medium_confidence_min,
+    )
     assert [PredictionMode(int(m)) for m in result.mode] == modes
     assert result.near_reversal.tolist() == [
         m in (PredictionMode.STOP, PredictionMode.REVERSE) for m in modes
@@ -109,7 +117,13 @@ def test_a_forklift_that_just_stopped_is_near_reversal_whatever_its_state(
     feats = replace(feats, values=values)
     flags = near_reversal_flags(feats, config.predict)
     assert flags.tolist() == [speed < 0.3 and since <= 1.0]
-    result = predict(tracks, feats, classification(tracks, name, 0.9), config)
+    result = predict(
+        tracks,
+        feats,
+        classification(tracks, name, 0.9),
+        config.predict,
+        config.classify.medium_confidence_min,
+    )
     assert [PredictionMode(int(m)) for m in result.mode] == modes
 
 
@@ -118,7 +132,11 @@ def test_cone_reverse_and_footprint_regions() -> None:
     h = config.predict.horizon_s
     tracks = _one(speed=1.0)
     cone = predict(
-        tracks, features_for(tracks, False), classification(tracks, "forklift_moving", 0.9), config
+        tracks,
+        features_for(tracks, False),
+        classification(tracks, "forklift_moving", 0.9),
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     bound = 1.0 + 2 * 0.05
     region = _hull(cone.reach_xy_m[0])
@@ -128,13 +146,18 @@ def test_cone_reverse_and_footprint_regions() -> None:
         tracks,
         features_for(tracks, True),
         classification(tracks, "forklift_near_reversal", 0.9),
-        config,
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     reverse = _hull(near.reach_xy_m[near.mode == PredictionMode.REVERSE][0])
     # Back up at the reversal speed opposite the confirmed heading (+x from the history).
     assert reverse.covers(shapely.Point(-config.predict.reversal_speed_mps * h, 0.0))
     still = predict(
-        tracks, features_for(tracks, False), classification(tracks, "static", 0.9), config
+        tracks,
+        features_for(tracks, False),
+        classification(tracks, "static", 0.9),
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     assert np.allclose(still.reach_xy_m[0], 0.0)
     assert still.body_radius_m[0] == pytest.approx(0.5 * math.hypot(0.8, 2.0) + 2 * 0.01)
@@ -147,7 +170,8 @@ def test_unknown_confirmed_heading_makes_both_modes_discs() -> None:
         tracks,
         features_for(tracks, True),
         classification(tracks, "forklift_near_reversal", 0.9),
-        config,
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     assert np.isnan(result.heading_rad).all()
     reverse = _hull(result.reach_xy_m[result.mode == PredictionMode.REVERSE][0])
@@ -160,7 +184,11 @@ def test_dormant_tracks_get_no_prediction_and_inputs_must_match() -> None:
     config = default_config()
     tracks = _one(status=TrackStatus.DORMANT)
     result = predict(
-        tracks, features_for(tracks, False), classification(tracks, "person", 0.9), config
+        tracks,
+        features_for(tracks, False),
+        classification(tracks, "person", 0.9),
+        config.predict,
+        config.classify.medium_confidence_min,
     )
     assert result.n == 0
     other = _one()
@@ -169,5 +197,6 @@ def test_dormant_tracks_get_no_prediction_and_inputs_must_match() -> None:
             tracks,
             features_for(replace(other, track_id=np.array([7])), False),
             classification(tracks, "person", 0.9),
-            config,
+            config.predict,
+            config.classify.medium_confidence_min,
         )

@@ -8,7 +8,7 @@ import pytest
 from pipeline.config import default_config, overridden
 from pipeline.track import kalman
 from pipeline.track.associate import assign, cascade, gated_costs
-from pipeline.track.metrics import Frame, evaluate, gospa
+from pipeline.track.metrics import PositionsFrame, evaluate, gospa
 from pipeline.track.tracker import Detections, Tracker, TrackerError
 from pipeline.types import TrackStatus
 
@@ -164,12 +164,12 @@ def test_detections_refuse_half_or_misshapen_ends() -> None:
 
 
 def test_metrics_count_an_id_switch_and_a_fragmentation() -> None:
-    truth = [Frame(np.array([0]), np.array([[0.0, 0.0]])) for _ in range(4)]
+    truth = [PositionsFrame(np.array([0]), np.array([[0.0, 0.0]])) for _ in range(4)]
     hyps = [
-        Frame(np.array([7]), np.array([[0.1, 0.0]])),
-        Frame(np.array([], dtype=np.int64), np.zeros((0, 2))),
-        Frame(np.array([9]), np.array([[0.0, 0.1]])),
-        Frame(np.array([9]), np.array([[0.0, 0.0]])),
+        PositionsFrame(np.array([7]), np.array([[0.1, 0.0]])),
+        PositionsFrame(np.array([], dtype=np.int64), np.zeros((0, 2))),
+        PositionsFrame(np.array([9]), np.array([[0.0, 0.1]])),
+        PositionsFrame(np.array([9]), np.array([[0.0, 0.0]])),
     ]
     q = evaluate(truth, hyps)
     assert (q.id_switches, q.fragmentations, q.n_misses, q.n_false_positives) == (1, 1, 1, 0)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.classify_data import DRILL, Rows, RunSpec
 from pipeline.config import default_config
+from pipeline.training.data import DRILL, Rows, RunSpec
 from properties.heldout_roles import DRAWN, row_roles
 
 

@@ -14,7 +14,7 @@ import z3
 from evidence.record import current
 from properties.smt import (
     Obligation,
-    Verdict,
+    ProofVerdict,
     bisect_largest,
     decimal_text,
     exact_value,
@@ -24,7 +24,7 @@ from properties.smt import (
     to_fraction,
     to_z3,
 )
-from safety.readings import sqrt
+from safety.model.readings import sqrt
 
 x, y = z3.Reals("x y")
 
@@ -36,24 +36,24 @@ def _z3_binary() -> str | None:
 
 def test_proved_refuted_and_unknown() -> None:
     proved = prove(Obligation("square", "x^2 >= 0", (), x * x >= 0))
-    assert proved.verdict is Verdict.PROVED
+    assert proved.verdict is ProofVerdict.PROVED
     assert proved.model == {}
     refuted = prove(Obligation("half", "x <= 1/2 on [0, 1]", (x >= 0, x <= 1), x <= Fraction(1, 2)))
-    assert refuted.verdict is Verdict.REFUTED
+    assert refuted.verdict is ProofVerdict.REFUTED
     (value,) = refuted.model.values()
     assert isinstance(value, Fraction)
     assert Fraction(1, 2) < value <= 1
     assert refuted.model_floats() == {"x": float(value)}
     # A variable exponent is outside what z3's real arithmetic decides: never a pass.
     unknown = prove(Obligation("power", "x^y != 3", (x > 0, y > 0), x**y != 3))
-    assert unknown.verdict is Verdict.UNKNOWN
+    assert unknown.verdict is ProofVerdict.UNKNOWN
     assert not unknown.proved
     assert "unknown" in unknown.reason
 
 
 def test_irrational_counterexample_is_shown_as_root_object() -> None:
     result = prove(Obligation("no sqrt 2", "x^2 != 2", (x >= 0,), x * x != 2))
-    assert result.verdict is Verdict.REFUTED
+    assert result.verdict is ProofVerdict.REFUTED
     text = result.model["x"]
     assert isinstance(text, str)
     assert text.startswith("(root-obj")
@@ -64,7 +64,7 @@ def test_irrational_counterexample_is_shown_as_root_object() -> None:
 def test_counterexample_is_rationalised_when_a_rational_one_exists() -> None:
     # The boundary sits at an irrational point, but any x a bit above sqrt(2) violates too.
     result = prove(Obligation("below sqrt 2", "x^2 <= 2", (x >= 0, x <= 2), x * x <= 2))
-    assert result.verdict is Verdict.REFUTED
+    assert result.verdict is ProofVerdict.REFUTED
     value = result.model["x"]
     assert isinstance(value, Fraction)
     assert value * value > 2
@@ -96,14 +96,14 @@ def test_purified_roots_are_sound_for_negative_radicands() -> None:
     # z3 leaves (-1)^(1/2) unspecified; the purification leaves the root free there, so a
     # claim that depends on it is refuted rather than proved vacuously.
     unguarded = prove(Obligation("root", "sqrt(x) >= 0", (), sqrt(x) >= 0))
-    assert unguarded.verdict is Verdict.REFUTED
+    assert unguarded.verdict is ProofVerdict.REFUTED
     assert unguarded.model["x"] < 0  # type: ignore[operator]
     guarded = prove(Obligation("root", "sqrt(x) >= 0", (x >= 0,), sqrt(x) >= 0))
-    assert guarded.verdict is Verdict.PROVED
+    assert guarded.verdict is ProofVerdict.PROVED
     nested = prove(
         Obligation("nested", "sqrt(sqrt(x))^4 = x", (x >= 0,), (sqrt(sqrt(x)) ** 4) == x)
     )
-    assert nested.verdict is Verdict.PROVED
+    assert nested.verdict is ProofVerdict.PROVED
     formulas, side, fresh = purify_roots([sqrt(x) + sqrt(x) >= sqrt(y)])
     assert len(fresh) == 2  # the shared sqrt(x) is replaced once
     assert len(side) == 2
@@ -120,7 +120,7 @@ def test_bisection_brackets_the_largest_value_by_proofs() -> None:
     assert bracket.high - bracket.low <= Fraction(1, 10**9)
     assert bracket.low * bracket.low <= 2 < bracket.high * bracket.high
     assert bracket.proved.proved
-    assert bracket.refuted.verdict is Verdict.REFUTED
+    assert bracket.refuted.verdict is ProofVerdict.REFUTED
     with pytest.raises(ValueError, match="REFUTED at the low end"):
         bisect_largest(holds_up_to, Fraction(2), Fraction(3))  # type: ignore[arg-type]
 

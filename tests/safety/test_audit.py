@@ -18,7 +18,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from evidence.record import Recorder
 from pipeline.config import config_hash, default_config, overridden
 from properties.audit_cases import random_cycle, write_random_log
-from safety.audit import (
+from safety.audit.log import (
     GENESIS,
     AuditError,
     AuditWriter,
@@ -28,10 +28,10 @@ from safety.audit import (
     record_hash,
     signing_key_for,
 )
-from safety.audit_verify import AuditStatus, verify_log
-from safety.governor import Governor
+from safety.audit.verify import AuditStatus, verify_log
+from safety.model.governor import Governor
 
-AUDIT = ["safety/audit.py", "safety/audit_verify.py", "safety/audit_cli.py"]
+AUDIT = ["safety/audit/log.py", "safety/audit/verify.py", "evidence/cli/audit.py"]
 CONFIG = default_config()
 
 
@@ -45,7 +45,7 @@ def _records(log: Path) -> list[dict[str, object]]:
     return [json.loads(line) for line in log.read_bytes().splitlines()]
 
 
-@pytest.mark.requirement("SR-AUD-2", kind="example", code=["safety/audit.py"])
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=["safety/audit/log.py"])
 def test_header_records_config_model_and_latency(tmp_path: Path) -> None:
     log = _log(tmp_path, model_hash="ab" * 32)
     header, *cycles, close = _records(log)
@@ -189,7 +189,7 @@ def test_anchor_removed_or_signed_by_someone_else(tmp_path: Path) -> None:
     assert copied.notes
 
 
-SAFECASE = [sys.executable, "-m", "safety"]
+SAFECASE = [sys.executable, "-m", "evidence.cli"]
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
@@ -235,7 +235,7 @@ def test_cli_verify_show_tail_replay(tmp_path: Path) -> None:
 
 
 def test_background_writer_writes_the_same_bytes(tmp_path: Path) -> None:
-    governor = Governor(CONFIG)
+    governor = Governor.from_config(CONFIG)
     rng = np.random.default_rng(9)
     records = [random_cycle(rng, governor, CONFIG, 0.1 * i, None) for i in range(25)]
     paths = []
@@ -259,16 +259,18 @@ def test_background_writer_reports_a_failure(tmp_path: Path) -> None:
     writer = AuditWriter(tmp_path / "f.log", CONFIG, model_hash=None)
     writer.close()  # every later append fails in the worker
     queued = BackgroundAuditWriter(writer)
-    queued.append(random_cycle(np.random.default_rng(0), Governor(CONFIG), CONFIG, 1.0, None))
+    queued.append(
+        random_cycle(np.random.default_rng(0), Governor.from_config(CONFIG), CONFIG, 1.0, None)
+    )
     with pytest.raises(AuditError, match=r"writer failed: .* is closed"):
         queued.close()
 
 
-@pytest.mark.requirement("SR-AUD-1", kind="measurement", code=["safety/audit.py"])
+@pytest.mark.requirement("SR-AUD-1", kind="measurement", code=["safety/audit/log.py"])
 def test_append_cost_with_and_without_waiting_for_the_disk(
     tmp_path: Path, evidence: Recorder
 ) -> None:
-    governor = Governor(CONFIG)
+    governor = Governor.from_config(CONFIG)
     rng = np.random.default_rng(11)
     records = [random_cycle(rng, governor, CONFIG, 0.1 * i, None) for i in range(600)]
     rows = []

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from pipeline.config import default_config, overridden
-from safety.costmap import Costmap, CostmapBuilder
-from safety.geometry import convex_polygons
+from safety.geometry.costmap import Costmap, CostmapBuilder
+from safety.geometry.polygons import convex_polygons
 
 
 def _square(cx: float, cy: float, half: float) -> np.ndarray:

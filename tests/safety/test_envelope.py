@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 import shapely
 
-from pipeline.classify import MODEL_CLASSES
+from pipeline.classify.model import MODEL_CLASSES
 from pipeline.config import SafecaseConfig, default_config
 from pipeline.predict import predict
 from pipeline.types import Action, Envelopes, PredictionMode, Predictions, TrackStatus
 from properties.prediction_cases import classification, features_for, tracks_of
-from safety.envelope import EnvelopeBuilder, body_polygons
-from safety.governor import Governor
-from safety.swept import SweptPathChecker
+from safety.geometry.envelopes import EnvelopeBuilder, body_polygons
+from safety.geometry.swept import SweptPathChecker
+from safety.model.governor import Governor
 
 
 def _envelopes(
@@ -25,8 +25,14 @@ def _envelopes(
     config = default_config()
     hist = np.stack([np.linspace(xy[0] + 1.5, xy[0], 15), np.full(15, xy[1])], axis=1)
     tracks = tracks_of(np.array(xy), np.array([-0.2, 0.0]), 0.01, 0.02, 0.5, 1.0, hist)
-    pred = predict(tracks, features_for(tracks, near), classification(tracks, name, conf), config)
-    return config, pred, EnvelopeBuilder(config).build(pred, MODEL_CLASSES)
+    pred = predict(
+        tracks,
+        features_for(tracks, near),
+        classification(tracks, name, conf),
+        config.predict,
+        config.classify.medium_confidence_min,
+    )
+    return config, pred, EnvelopeBuilder.from_config(config).build(pred, MODEL_CLASSES)
 
 
 @pytest.mark.parametrize(
@@ -66,7 +72,9 @@ def test_envelope_is_the_body_region_grown_by_the_margin() -> None:
 def test_robot_pose_moves_envelopes_into_the_robot_frame() -> None:
     config = default_config()
     _, pred, world = _envelopes("static", 0.95, xy=(5.0, 1.0))
-    robot = EnvelopeBuilder(config).build(pred, MODEL_CLASSES, robot_pose=(4.0, 1.0, math.pi / 2))
+    robot = EnvelopeBuilder.from_config(config).build(
+        pred, MODEL_CLASSES, robot_pose=(4.0, 1.0, math.pi / 2)
+    )
     # The object 1 m ahead along world +x is 1 m to the robot's right when it faces +y.
     w = shapely.Polygon(world.polygons.vertex_list(0)).centroid
     r = shapely.Polygon(robot.polygons.vertex_list(0)).centroid
@@ -79,9 +87,13 @@ def test_empty_predictions_give_empty_envelopes() -> None:
     tracks = tracks_of(np.zeros(2), np.zeros(2), 0.01, 0.01, 0.5, 0.5, np.zeros((1, 2)))
     dormant = replace(tracks, status=np.array([int(TrackStatus.DORMANT)]))
     empty = predict(
-        dormant, features_for(dormant, False), classification(dormant, "static", 0.9), config
+        dormant,
+        features_for(dormant, False),
+        classification(dormant, "static", 0.9),
+        config.predict,
+        config.classify.medium_confidence_min,
     )
-    env = EnvelopeBuilder(config).build(empty, MODEL_CLASSES)
+    env = EnvelopeBuilder.from_config(config).build(empty, MODEL_CLASSES)
     assert empty.n == 0
     assert env.n == 0
     assert env.polygons.n == 0
@@ -95,11 +107,11 @@ def test_envelopes_feed_the_swept_path_check_and_the_governor() -> None:
     assert report.blocked.any()  # straight ahead: some candidate paths hit it
     hit = report.blocked.any(axis=0)
     free = np.where(hit, 0.0, 10.0)  # free distance along the path (contact now where blocked)
-    command = Governor(config).command(
+    command = Governor.from_config(config).command(
         0.0, free, env.closing_speed_mps, env.confidence, env.near_reversal
     )
     assert command.action is Action.STOP
-    far = Governor(config).command(
+    far = Governor.from_config(config).command(
         0.0, np.full(env.n, 5.0), env.closing_speed_mps, env.confidence, env.near_reversal
     )
     assert far.action in (Action.PROCEED, Action.SLOW)

@@ -14,16 +14,16 @@ from pipeline.errors import ConfigError, SafecaseError
 from pipeline.types import ConvexPolygons
 from properties.geometry_cases import HARD_CASES, HardCase
 from properties.oracles.geometry import exact_pair, fcl_collide, z3_common_point
-from safety.contact import contact_pairs
-from safety.geometry import (
+from safety.geometry.contact import contact_pairs
+from safety.geometry.polygons import (
     DegeneratePolygonError,
     GeometryError,
     NonFiniteGeometryError,
     convex_polygons,
     transform_polygons,
 )
-from safety.sat import RHO, SatChecker
-from safety.swept import (
+from safety.geometry.sat import RHO, SatChecker
+from safety.geometry.swept import (
     SweptPathChecker,
     Trajectories,
     rectangle_footprint,
@@ -31,7 +31,7 @@ from safety.swept import (
     unicycle_trajectories,
 )
 
-SAT = ["safety/sat.py", "safety/geometry.py"]
+SAT = ["safety/geometry/sat.py", "safety/geometry/polygons.py"]
 
 
 def _box(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
@@ -95,7 +95,7 @@ def test_hard_case(case: HardCase, evidence: Recorder, safecase_config: Safecase
 
 
 # ----------------------------------------------------------------------- bad input
-@pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/geometry.py"])
+@pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/geometry/polygons.py"])
 @pytest.mark.parametrize(
     ("points", "error", "words"),
     [
@@ -115,7 +115,9 @@ def test_malformed_polygons_raise(points: list[list[float]], error: type, words:
     assert "polygon 0" in str(info.value)
 
 
-@pytest.mark.requirement("SR-SAT-4", kind="example", code=["safety/swept.py", "pipeline/types/"])
+@pytest.mark.requirement(
+    "SR-SAT-4", kind="example", code=["safety/geometry/swept.py", "pipeline/types/"]
+)
 def test_malformed_poses_and_inputs_raise() -> None:
     theta = np.zeros((5, 2))
     theta[3, 1] = math.nan
@@ -141,7 +143,7 @@ def test_geometry_grid_must_match_trajectory_count() -> None:
 
 
 # --------------------------------------------------------------------- normalisation
-@pytest.mark.requirement("SR-SAT-1", kind="example", code=["safety/geometry.py"])
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=["safety/geometry/polygons.py"])
 def test_normalisation_orders_and_cleans() -> None:
     clockwise = np.array([[0, 0], [0, 1], [1, 1], [1, 0], [1, 0], [0.5, 0]], dtype=np.float64)
     poly = convex_polygons([clockwise])
@@ -153,7 +155,7 @@ def test_normalisation_orders_and_cleans() -> None:
 
 
 # -------------------------------------------------------------- contact: depth, MTV
-@pytest.mark.requirement("SR-SAT-2", kind="example", code=["safety/contact.py"])
+@pytest.mark.requirement("SR-SAT-2", kind="example", code=["safety/geometry/contact.py"])
 def test_penetration_mtv_and_distance() -> None:
     a, b = _pair(_box(0, 0, 1, 1), _box(0.7, 0.2, 1.7, 0.8))
     contact = contact_pairs(a, b)
@@ -168,7 +170,7 @@ def test_penetration_mtv_and_distance() -> None:
 
 
 # ------------------------------------------------------------------- planner check
-@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/geometry/swept.py"])
 def test_swept_path_check_reports_obstacle_and_time(evidence: Recorder) -> None:
     config = default_config().geometry
     footprint = rectangle_footprint(0.7, 0.5)
@@ -188,7 +190,7 @@ def test_swept_path_check_reports_obstacle_and_time(evidence: Recorder) -> None:
     evidence.note(f"straight path blocked by envelope 0 at {report.earliest_contact_s[0]:.1f} s")
 
 
-@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/geometry/swept.py"])
 def test_hull_only_block_is_reported_as_contact_now() -> None:
     footprint = rectangle_footprint(0.4, 0.4)
     # A half circle of radius 2 m: the hull covers the centre, the footprints never do.
@@ -201,7 +203,7 @@ def test_hull_only_block_is_reported_as_contact_now() -> None:
     assert report.earliest_contact_s[0] == 0.0
 
 
-@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/geometry/swept.py"])
 def test_swept_hull_of_straight_motion_is_a_rectangle() -> None:
     traj = unicycle_trajectories([1.0], [0.0], horizon_s=1.5, step_s=0.1)
     hull = swept_hulls(rectangle_footprint(0.7, 0.5), traj)
@@ -211,7 +213,7 @@ def test_swept_hull_of_straight_motion_is_a_rectangle() -> None:
     assert vertices[:, 0].max() == pytest.approx(1.85)
 
 
-@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/swept.py"])
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=["safety/geometry/swept.py"])
 def test_configured_candidates_and_footprint() -> None:
     checker = SweptPathChecker(default_config().geometry)
     traj = checker.candidates(max_speed_mps=1.0)

@@ -11,15 +11,15 @@ from pytest_benchmark.fixture import BenchmarkFixture
 from evidence.timing import compare
 from pipeline.config import default_config, overridden
 from pipeline.types import Action
-from safety.governor import Governor, governed_speed_mps
-from safety.stopping import StoppingParams, safe_speed_mps
+from safety.model.governor import Governor, governed_speed_mps
+from safety.model.stopping import StoppingParams, safe_speed_mps
 
-GOVERNOR = ["safety/governor.py"]
+GOVERNOR = ["safety/model/governor.py"]
 
 
 @pytest.fixture
 def governor() -> Governor:
-    return Governor(default_config())
+    return Governor.from_config(default_config())
 
 
 def _expected(distance_m: float, closing_mps: float) -> float:
@@ -73,7 +73,7 @@ def test_stop_when_no_moving_speed_fits(governor: Governor) -> None:
     # With no minimum moving speed the governor creeps instead.
     config = overridden(default_config(), {"governor": {"min_moving_speed_mps": 0.0}})
     # 4 cm: more than the 2.7 cm that standstill needs (0.5 m/s^2 for 0.28 s, then braking).
-    assert Governor(config).command(0.0, [0.04], 0.0, 0.9).action is Action.SLOW
+    assert Governor.from_config(config).command(0.0, [0.04], 0.0, 0.9).action is Action.SLOW
 
 
 @pytest.mark.requirement("SR-STOP-2", kind="example", code=GOVERNOR)
@@ -123,13 +123,13 @@ def test_bad_stamp_and_internal_errors_stop(
 
 def test_a_measured_latency_bound_slows_the_robot() -> None:
     config = default_config()
-    slower = Governor(
+    slower = Governor.from_config(
         config,
         StoppingParams.from_config(config, perception_latency_s=0.3, latency_source="measured"),
     )
     assert (
         slower.command(0.0, [0.6], 0.0, 0.9).speed_mps
-        < Governor(config).command(0.0, [0.6], 0.0, 0.9).speed_mps
+        < Governor.from_config(config).command(0.0, [0.6], 0.0, 0.9).speed_mps
     )
 
 

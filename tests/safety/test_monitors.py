@@ -10,27 +10,27 @@ import numpy as np
 import pytest
 
 from pipeline.config import default_config
-from pipeline.sim.scenarios import make_simulation
+from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.types import Action, Command, DriverState
-from safety.audit import AuditWriter
-from safety.decision import GovernorInputs, decide
-from safety.governor import Governor
-from safety.monitors import (
+from safety.audit.log import AuditWriter
+from safety.audit.replay import replay
+from safety.model.decision import GovernorInputs, decide
+from safety.model.governor import Governor
+from safety.model.monitors import (
     DEFAULT_MONITORS,
+    MonitorVerdict,
     Observation,
-    Verdict,
     combine,
     run_monitors,
 )
-from safety.replay import replay
 from safety.runtime import CycleInput, Runtime
 
-MONITORS = ["safety/monitors.py"]
+MONITORS = ["safety/model/monitors.py"]
 CONFIG = default_config()
 M = CONFIG.monitors
 
 
-def _verdicts(obs: Observation) -> dict[str, Verdict]:
+def _verdicts(obs: Observation) -> dict[str, MonitorVerdict]:
     return {v.monitor: v for v in run_monitors(obs, M)}
 
 
@@ -115,16 +115,16 @@ def test_operating_domain_caps_window_and_gaps() -> None:
 
 @pytest.mark.requirement("SR-FUS-2", kind="example", code=MONITORS)
 def test_a_monitor_that_raises_gives_stop_with_its_error() -> None:
-    def broken(obs: Observation, cfg: object) -> Verdict:
+    def broken(obs: Observation, cfg: object) -> MonitorVerdict:
         raise ZeroDivisionError("division by zero")
 
-    def wrong(obs: Observation, cfg: object) -> Verdict:
+    def wrong(obs: Observation, cfg: object) -> MonitorVerdict:
         return "fine"  # type: ignore[return-value]
 
     verdicts = run_monitors(_fine(), M, [("broken", broken), ("wrong", wrong)])
     assert [v.reason for v in verdicts] == [
         "monitor broken failed (ZeroDivisionError): division by zero",
-        "monitor wrong failed (TypeError): returned str, not a Verdict",
+        "monitor wrong failed (TypeError): returned str, not a MonitorVerdict",
     ]
     assert all(v.action is Action.STOP for v in verdicts)
 
@@ -132,9 +132,9 @@ def test_a_monitor_that_raises_gives_stop_with_its_error() -> None:
 def test_combine_keeps_the_most_restrictive_and_every_reason() -> None:
     governor = Command(Action.SLOW, 0.6, 1.0, ("obstacle 0: limit 0.600 m/s",))
     verdicts = [
-        Verdict.ok("clock"),
-        Verdict.slow("operating_domain", 0.3, "incomplete scan"),
-        Verdict.slow("other", 0.5, "something"),
+        MonitorVerdict.ok("clock"),
+        MonitorVerdict.slow("operating_domain", 0.3, "incomplete scan"),
+        MonitorVerdict.slow("other", 0.5, "something"),
     ]
     final = combine(governor, verdicts, stamp_s=1.0, min_moving_mps=0.05)
     assert final == Command(
@@ -144,15 +144,22 @@ def test_combine_keeps_the_most_restrictive_and_every_reason() -> None:
         ("obstacle 0: limit 0.600 m/s", "operating_domain: incomplete scan", "other: something"),
     )
     stop = combine(
-        governor, [*verdicts, Verdict.stop("deadline", "late")], stamp_s=1.0, min_moving_mps=0.05
+        governor,
+        [*verdicts, MonitorVerdict.stop("deadline", "late")],
+        stamp_s=1.0,
+        min_moving_mps=0.05,
     )
     assert stop.action is Action.STOP
     assert stop.reasons[-1] == "deadline: late"
     proceed = Command(Action.PROCEED, 1.0, 1.0)
-    slow = combine(proceed, [Verdict.slow("x", 0.04, "tiny")], stamp_s=1.0, min_moving_mps=0.05)
+    slow = combine(
+        proceed, [MonitorVerdict.slow("x", 0.04, "tiny")], stamp_s=1.0, min_moving_mps=0.05
+    )
     assert slow.action is Action.STOP
     assert slow.reasons[-1] == "combine: limit 0.040 m/s below 0.05 m/s"
-    assert combine(proceed, [Verdict.ok("clock")], stamp_s=1.0, min_moving_mps=0.05) == proceed
+    assert (
+        combine(proceed, [MonitorVerdict.ok("clock")], stamp_s=1.0, min_moving_mps=0.05) == proceed
+    )
 
 
 def test_combine_without_governor_command_stops() -> None:
@@ -167,14 +174,18 @@ def test_combine_without_governor_command_stops() -> None:
 def test_verdict_and_observation_round_trip() -> None:
     obs = _fine(driver_state="OK", over_cap=(("a", 1),), previous_now_s=math.inf)
     assert Observation.from_dict(obs.to_dict()) == obs
-    for verdict in (Verdict.ok("a"), Verdict.slow("b", 0.2, "r"), Verdict.stop("c", "why")):
-        assert Verdict.from_dict(verdict.to_dict()) == verdict
+    for verdict in (
+        MonitorVerdict.ok("a"),
+        MonitorVerdict.slow("b", 0.2, "r"),
+        MonitorVerdict.stop("c", "why"),
+    ):
+        assert MonitorVerdict.from_dict(verdict.to_dict()) == verdict
     with pytest.raises(ValueError, match="needs a reason"):
-        Verdict("x", Action.SLOW, 0.2)
+        MonitorVerdict("x", Action.SLOW, 0.2)
 
 
 def test_decide_runs_governor_and_monitors() -> None:
-    governor = Governor(CONFIG)
+    governor = Governor.from_config(CONFIG)
     inputs = GovernorInputs(10.0, np.array([0.9, 5.0]), None, np.array([0.95, 0.95]), None)
     decision = decide(governor, inputs, _fine(scan_stamp_s=9.0, previous_scan_stamp_s=None), M)
     assert decision.governor_command is not None
@@ -185,7 +196,7 @@ def test_decide_runs_governor_and_monitors() -> None:
     assert GovernorInputs.from_dict(inputs.to_dict()).to_dict() == inputs.to_dict()
 
 
-@pytest.mark.requirement("SR-FUS-2", kind="example", code=[*MONITORS, "safety/decision.py"])
+@pytest.mark.requirement("SR-FUS-2", kind="example", code=[*MONITORS, "safety/model/decision.py"])
 def test_stale_scan_failed_stage_and_clock_jump_in_the_runtime(tmp_path: Path) -> None:
     sim = make_simulation(CONFIG, "pallet_jack_slow", seed=1, duration_s=1.0)
     scans = list(sim.scans())

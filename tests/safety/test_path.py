@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from pipeline.config import default_config
-from safety.geometry import GeometryError, NonFiniteGeometryError, convex_polygons
-from safety.path import PathAhead, PathClearance
+from safety.geometry.path import PathAhead, PathClearance
+from safety.geometry.polygons import GeometryError, NonFiniteGeometryError, convex_polygons
 
 CONFIG = default_config()
 
 
-@pytest.mark.requirement("SR-RUN-3", kind="example", code=["safety/path.py"])
+@pytest.mark.requirement("SR-RUN-3", kind="example", code=["safety/geometry/path.py"])
 def test_a_pivot_at_a_corner_sweeps_the_footprint_s_outer_corner() -> None:
     # A 90 deg left turn at (2, 0). Half way through the pivot, the robot's rear right corner
     # (0.45, -0.3) is at (2.53, 0.11): outside the footprint before and after the corner (and
@@ -32,7 +32,7 @@ def test_a_pivot_at_a_corner_sweeps_the_footprint_s_outer_corner() -> None:
     assert loose.point_free_m <= 2.0
 
 
-@pytest.mark.requirement("SR-RUN-3", kind="example", code=["safety/path.py"])
+@pytest.mark.requirement("SR-RUN-3", kind="example", code=["safety/geometry/path.py"])
 def test_a_wall_of_loose_points_ahead_and_points_beside_the_path() -> None:
     clear = PathClearance(CONFIG.geometry)
     path = PathAhead.straight((0.0, 0.0, 0.0), 6.0, 0.05)

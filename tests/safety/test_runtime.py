@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.classify import Classifier
+from pipeline.classify.model import Classifier
 from pipeline.config import default_config, overridden
 from pipeline.types import Action, Scan, ThermalDetections
 from properties.cli_runner import run_safecase
@@ -55,7 +55,9 @@ def test_a_thermal_only_pedestrian_ahead_stops_the_robot(classifier: Classifier)
     assert far.command.action in (Action.SLOW, Action.PROCEED)
 
 
-@pytest.mark.requirement("SR-RUN-1", kind="example", code=["safety/runtime.py", "safety/path.py"])
+@pytest.mark.requirement(
+    "SR-RUN-1", kind="example", code=["safety/runtime.py", "safety/geometry/path.py"]
+)
 def test_a_wall_too_long_to_cluster_still_limits_the_speed(classifier: Classifier) -> None:
     # A wall 1.0 m ahead across the whole front: one cluster of ~500 points, more than the
     # cluster filter keeps (200), so no track: the loose-point path check must see it.
@@ -93,7 +95,7 @@ def test_the_envelopes_and_costmap_are_recorded_and_the_planner_can_run(
     assert set(out.wall_s) >= {"points", "classify", "path", "planner", "costmap", "decide"}
 
 
-@pytest.mark.requirement("SR-RUN-4", kind="example", code=["safety/run_cli.py"])
+@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/run.py"])
 def test_safecase_run_writes_a_log_that_verifies_and_a_plot(tmp_path: Path) -> None:
     log = tmp_path / "run.jsonl"
     done = run_safecase("run", "--duration", "3", "--audit", str(log), cwd=tmp_path)

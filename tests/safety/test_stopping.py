@@ -17,7 +17,7 @@ import z3
 from pipeline.config import default_config, load_config, overridden
 from pipeline.errors import ConfigError
 from properties.smt import exact_value
-from safety.stopping import (
+from safety.model.stopping import (
     ClosingClass,
     StoppingParams,
     Tier,
@@ -69,7 +69,7 @@ def test_safe_speed_is_zero_when_not_even_standstill_fits() -> None:
 
 
 @pytest.mark.requirement(
-    "SR-STOP-1", kind="example", code=["pipeline/config/", "safety/stopping.py"]
+    "SR-STOP-1", kind="example", code=["pipeline/config/", "safety/model/stopping.py"]
 )
 def test_default_caps_come_from_the_computed_limits() -> None:
     params = StoppingParams.from_config(default_config())
@@ -139,14 +139,14 @@ def test_source_configuration_holds_the_published_figures() -> None:
     assert config.predict.reversal_speed_mps == s.forklift_reversing_speed_mps == 0.6
 
 
-@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/stopping.py"])
+@pytest.mark.requirement("SR-STOP-1", kind="example", code=["safety/model/stopping.py"])
 def test_certify_reports_the_source_tiers_refuted_with_safe_caps(tmp_path: Path) -> None:
     env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="400")
     done = subprocess.run(
         [
             sys.executable,
             "-m",
-            "safety",
+            "evidence.cli",
             "certify",
             "--config",
             str(SOURCE),

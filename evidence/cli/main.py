@@ -1,0 +1,216 @@
+"""The ``safecase`` entry point: the app, and certify, evidence, config and requirements.
+
+Errors a user can cause (a bad configuration value, an unreadable file) end with one line per
+problem and exit code 2, never a traceback (SR-CFG-1; :mod:`evidence.cli.common`).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from importlib import metadata
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from evidence.catalogue import load_catalogue
+from evidence.cli.audit import app as audit_app
+from evidence.cli.common import ConfigOption, err, load_config_or_exit, out, stamp
+from evidence.cli.run import run_command
+from evidence.cli.sim import app as sim_app
+from evidence.cli.train import train_command
+from evidence.manifest import verify_bundle
+from pipeline.config import config_hash, to_toml
+from pipeline.errors import SafecaseError
+from safety.audit.keys import load_public_key
+
+app = typer.Typer(
+    name="safecase",
+    help="Formal-safety verification and certification harness for AMR obstacle perception.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+evidence_app = typer.Typer(help="Inspect and verify evidence bundles.", no_args_is_help=True)
+config_app = typer.Typer(help="Show and check configurations.", no_args_is_help=True)
+app.add_typer(evidence_app, name="evidence")
+app.add_typer(config_app, name="config")
+app.add_typer(sim_app, name="sim")
+app.add_typer(audit_app, name="audit")
+app.command("train")(train_command)
+app.command("run")(run_command)
+
+PROFILES = ("dev", "ci", "certify")
+
+
+def _version(value: bool) -> None:
+    if value:
+        out.print(f"safecase {metadata.version('safecase')}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """safecase: an audited runtime and its certification harness."""
+
+
+def project_root() -> Path:
+    """The source tree this safecase runs from (where tests/ and properties/ live)."""
+    return Path(__file__).resolve().parents[2]
+
+
+@app.command()
+def certify(
+    config: ConfigOption = None,
+    out_dir: Annotated[
+        Path, typer.Option("--out", help="Parent folder of the certification bundles.")
+    ] = Path("out/certification"),
+    profile: Annotated[
+        str, typer.Option(help=f"Hypothesis profile: {', '.join(PROFILES)}.")
+    ] = "certify",
+    key: Annotated[
+        Path | None, typer.Option(help="Ed25519 signing key (PEM); created when missing.")
+    ] = None,
+    select: Annotated[
+        str | None, typer.Option("-k", help="Only run tests matching this pytest -k expression.")
+    ] = None,
+    benchmarks: Annotated[
+        bool, typer.Option(help="Run the benchmarks (measurement evidence).")
+    ] = True,
+) -> None:
+    """Run the whole suite (properties, proofs, cross-checks, benchmarks) and write a signed
+    evidence bundle to OUT/<stamp>/ (and OUT/latest)."""
+    from evidence.run import run_certification
+
+    if profile not in PROFILES:
+        err.print(f"[bold red]error:[/] --profile {profile!r}: allowed: {', '.join(PROFILES)}")
+        raise typer.Exit(2)
+    cfg = load_config_or_exit(config)
+    when = stamp()
+    bundle_dir = out_dir / when
+    result = run_certification(
+        root=project_root(),
+        bundle_dir=bundle_dir,
+        config_path=config,
+        profile=profile,
+        key=key,
+        select=select,
+        benchmarks=benchmarks,
+        console=err,
+    )
+    latest = out_dir / "latest"
+    try:
+        if latest.is_symlink() or latest.exists():
+            latest.unlink()
+        latest.symlink_to(when, target_is_directory=True)
+    except OSError:
+        pass
+    out.print(f"config hash {config_hash(cfg)[:16]} ({config or 'built-in defaults'})")
+    _print_family_lines(result.bundle)
+    out.print(f"report: {bundle_dir / 'report.html'}")
+    out.print(f"bundle: {bundle_dir} (verify with: safecase evidence verify {bundle_dir})")
+    if result.exit_code != 0:
+        blocking = result.bundle.summary["blocking_requirements"] if result.bundle else []
+        if blocking:
+            out.print(
+                f"[bold red]NOT CERTIFIED:[/] claimed but not satisfied: {', '.join(blocking)}"
+            )
+        else:
+            out.print(
+                f"[bold red]NOT CERTIFIED:[/] the test session failed (exit {result.exit_code})"
+            )
+        raise typer.Exit(1)
+    out.print("[bold green]CERTIFIED:[/] every claimed requirement is SATISFIED")
+
+
+def _print_family_lines(bundle: Any) -> None:
+    if bundle is None:
+        out.print("[bold red]no evidence was produced[/]")
+        return
+    for family, counts in bundle.family_verdicts().items():
+        title = bundle.families.get(family, family)
+        claimed = [r for r in bundle.requirements if r.family == family and r.status == "claimed"]
+        if not claimed:
+            verdict = "[dim]PLANNED[/]"
+        elif any(r.verdict == "VIOLATED" for r in claimed):
+            verdict = "[bold red]VIOLATED[/]"
+        elif any(r.verdict == "NOT EVIDENCED" for r in claimed):
+            verdict = "[bold yellow]NOT EVIDENCED[/]"
+        else:
+            verdict = "[bold green]SATISFIED[/]"
+        detail = ", ".join(f"{n} {v}" for v, n in sorted(counts.items()))
+        out.print(f"{family:5s} {title:32s} {verdict}  ({detail})", highlight=False)
+
+
+@evidence_app.command("verify")
+def evidence_verify(
+    bundle: Annotated[Path, typer.Argument(help="The bundle folder (holding manifest.json).")],
+    public_key: Annotated[
+        Path | None,
+        typer.Option(help="Trusted public key (PEM or base64 raw); checks who signed."),
+    ] = None,
+) -> None:
+    """Check every file hash and the Ed25519 signature of an evidence bundle."""
+    trusted = None
+    if public_key is not None:
+        try:
+            trusted = load_public_key(public_key)
+        except (OSError, SafecaseError) as exc:
+            err.print(f"[bold red]error:[/] --public-key {public_key}: {exc}")
+            raise typer.Exit(2) from None
+    result = verify_bundle(bundle, trusted)
+    if result.ok:
+        who = "the trusted key" if result.trusted_key else f"key {result.fingerprint}"
+        out.print(f"OK: {result.checked_files} files match the manifest, signed by {who}")
+        return
+    for problem in result.problems:
+        out.print(f"[bold red]FAIL[/] {problem}", highlight=False)
+    raise typer.Exit(1)
+
+
+@config_app.command("show")
+def config_show(config: ConfigOption = None) -> None:
+    """Print the effective configuration as TOML, with its hash."""
+    cfg = load_config_or_exit(config)
+    out.print(f"# config hash: {config_hash(cfg)}", highlight=False)
+    out.print(to_toml(cfg.model_dump(mode="json")), highlight=False, markup=False)
+
+
+@config_app.command("check")
+def config_check(config: Annotated[Path, typer.Argument(help="TOML file to validate.")]) -> None:
+    """Validate a configuration file; exit 2 naming every bad key."""
+    cfg = load_config_or_exit(config)
+    out.print(f"OK: {config} is valid (config hash {config_hash(cfg)})")
+
+
+@app.command("requirements")
+def requirements_list(
+    family: Annotated[str | None, typer.Option(help="Only this family code, e.g. STOP.")] = None,
+) -> None:
+    """List the safety requirements catalogue."""
+    catalogue = load_catalogue()
+    table = Table("ID", "status", "minimum evidence", "claim", show_lines=False)
+    for req in catalogue.requirements:
+        if family and req.family != family.upper():
+            continue
+        minimum = ", ".join(f"{k}>={n}" for k, n in req.minimum)
+        table.add_row(req.id, req.status, minimum, req.claim)
+    out.print(table)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    # Typer reports usage errors with exit code 2 itself; keep matplotlib off any display.
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    try:
+        app()
+    except SafecaseError as exc:
+        err.print(f"[bold red]error:[/] {exc}")
+        sys.exit(2)

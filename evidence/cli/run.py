@@ -1,0 +1,278 @@
+"""``safecase run``: the audited runtime on any source, through one loop (:func:`safety.run.run`).
+
+Sources: a simulator scenario in closed loop (the default), a serial scanner (``--device``),
+the scenario served by a device emulator on a pty (``--emulate``), or a recorded log
+(``--log``: ROS 1 / ROS 2 bags, MCAP, CARMEN, BreezySLAM).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
+from pipeline.config import SafecaseConfig, config_hash, overridden
+from pipeline.errors import SafecaseError
+from pipeline.sources import FrameSource
+from pipeline.sources.logs.source import LogSource
+from pipeline.sources.logs.stamps import StampRule
+from pipeline.sources.serial.source import EmulatedSource, SerialSource
+from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.source import SimSource
+from safety.run import RunSummary, contact_speeds, run_audited
+from safety.runtime import CycleOutput
+
+DEFAULT_DEVICE_SCANS = 100
+EMULATORS = ("rplidar", "scip")
+
+
+def run_command(
+    scenario: Annotated[
+        str | None,
+        typer.Option(help="Simulator scenario (default: sim.scenario); see `safecase sim list`."),
+    ] = None,
+    seed: Annotated[int | None, typer.Option(help="Scenario seed (default: sim.seed).")] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(help="Run length in s (default: sim.duration_s; any source)."),
+    ] = None,
+    device: Annotated[
+        str | None,
+        typer.Option(help="Read a serial scanner at this pyserial URL (robot standing)."),
+    ] = None,
+    emulate: Annotated[
+        str | None,
+        typer.Option(
+            help="Serve the scenario's scans from a device emulator (rplidar or scip) on a pty "
+            "and read them through the serial driver (robot standing)."
+        ),
+    ] = None,
+    log: Annotated[
+        Path | None,
+        typer.Option(
+            help="Replay a recorded log: ROS 1 bag, ROS 2 bag folder, MCAP, CARMEN or "
+            "BreezySLAM file."
+        ),
+    ] = None,
+    scan_topic: Annotated[
+        str | None, typer.Option(help="--log bag: the LaserScan topic (default: the only one).")
+    ] = None,
+    odom_topic: Annotated[
+        str | None,
+        typer.Option(help="--log bag: the nav_msgs/Odometry topic giving the robot's pose."),
+    ] = None,
+    restamp: Annotated[
+        float | None,
+        typer.Option(help="--log: re-stamp the scans at this rate [Hz] (unusable log stamps)."),
+    ] = None,
+    scans: Annotated[
+        int | None,
+        typer.Option(min=1, help="Stop after this many scans (device modes: default 100)."),
+    ] = None,
+    audit: Annotated[
+        Path | None, typer.Option(help="Audit log to write (default: under audit.log_dir).")
+    ] = None,
+    plot: Annotated[
+        bool, typer.Option(help="Simulator: write a PNG of speeds, commands and separations.")
+    ] = True,
+    measured_clock: Annotated[
+        bool,
+        typer.Option(help="Charge each cycle its measured time (not reproducible)."),
+    ] = False,
+    config: ConfigOption = None,
+) -> None:
+    """Run the audited runtime: scan -> clusters -> tracks -> classes -> envelopes -> path
+    clearance -> governor -> PROCEED / SLOW / STOP, one audit record per cycle.
+
+    Examples: safecase run --scenario crossing_pedestrian --seed 3;
+    safecase run --emulate rplidar --scans 50; safecase run --log walk.bag --odom-topic /odom
+
+    Exit codes: 0 done; 1 the simulated robot touched something while moving; 2 bad options,
+    configuration, device or log.
+    """
+    cfg = load_config_or_exit(config)
+    given = (("--device", device), ("--emulate", emulate), ("--log", log))
+    chosen = [option for option, value in given if value is not None]
+    if len(chosen) > 1:
+        fail(f"{' and '.join(chosen)}: choose one source")
+    if duration is not None and not (math.isfinite(duration) and 0.0 < duration <= 86_400.0):
+        fail(f"--duration {duration}: allowed: a number of seconds > 0 and <= 86400")
+    if seed is not None and seed < 0:
+        fail(f"--seed {seed}: allowed: an integer >= 0")
+    if log is None and (scan_topic or odom_topic or restamp is not None):
+        fail("--scan-topic, --odom-topic and --restamp apply to --log only")
+    name = scenario or cfg.sim.scenario
+    if name not in SCENARIOS:
+        fail(f"--scenario {name!r}: unknown; known: {', '.join(SCENARIOS)}")
+    if emulate is not None and emulate not in EMULATORS:
+        fail(f"--emulate {emulate!r}: allowed: {', '.join(EMULATORS)}")
+    log_dir = Path(cfg.audit.log_dir)
+    try:
+        if device is not None or emulate is not None:
+            source = _device_source(cfg, device, emulate, name, seed, scans)
+            target = audit or log_dir / f"device-{stamp()}.jsonl"
+            _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration)
+            return
+        if log is not None:
+            rule = StampRule(restamp_hz=restamp)
+            source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
+            target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
+            summary = _run_recorded(cfg, source, target, scans, duration, measured_clock)
+            _report(cfg, summary, source)
+            return
+        sim = make_simulation(cfg, name, seed, duration)
+        target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
+        summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock)
+    except (SafecaseError, ValueError, OSError) as exc:
+        fail(str(exc))
+    _report(cfg, summary, None)
+    if plot and summary.sim is not None:
+        from safety.run_plot import run_figure
+
+        png = target.with_suffix(".png")
+        run_figure(summary).savefig(png, dpi=110)
+        out.print(f"plot: {png}", highlight=False)
+    if summary.moving_contacts:
+        out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
+        raise typer.Exit(1)
+
+
+def _device_source(
+    cfg: SafecaseConfig,
+    url: str | None,
+    emulate: str | None,
+    name: str,
+    seed: int | None,
+    max_scans: int | None,
+) -> FrameSource:
+    """The serial scanner at ``url``, or the scenario served by an emulated device."""
+    period = cfg.track.frame_period_s
+    if emulate is None:
+        assert url is not None
+        return SerialSource(cfg.driver.model_copy(update={"port_url": url}), period)
+    # The robot stands (the runtime has no odometry from a serial scanner); the world moves.
+    # The scanner is the emulated device's own (an RPLIDAR encodes at most 16.4 m), and the
+    # scenario runs long enough to serve every scan asked for.
+    lidar = "rplidar_a2" if emulate == "rplidar" else "hokuyo_ust10lx"
+    bench = overridden(cfg, {"sim": {"ego_speed_mps": 0.0, "lidar_device": lidar}})
+    wanted = max_scans or DEFAULT_DEVICE_SCANS
+    sim = make_simulation(bench, name, seed)
+    period_s = sim.lidar.spec.scan_period_s
+    if sim.n_scans < wanted + 10:
+        sim = make_simulation(bench, name, seed, (wanted + 10) * period_s)
+    driver = cfg.driver.model_copy(update={"protocol": emulate, "port_url": "emulated"})
+    return EmulatedSource(driver, period, sim.scans(), 1.0 / period_s)
+
+
+def _run_live(
+    cfg: SafecaseConfig,
+    source: FrameSource,
+    target: Path,
+    max_scans: int,
+    duration_s: float | None,
+) -> None:
+    """A live source: one line per cycle, then the command mix."""
+    summary = RunSummary(source.name, audit_path=target)
+    outputs = run_audited(
+        cfg, source, audit_path=target, max_scans=max_scans, duration_s=duration_s
+    )
+    for o in outputs:
+        summary.add(o)
+        c = o.command
+        why = f" ({c.reasons[0]})" if c.reasons else ""
+        out.print(
+            f"{summary.cycles:5d} {c.action.value:7s} {c.speed_mps:5.2f} m/s{why}",
+            highlight=False,
+            markup=False,
+        )
+    out.print(
+        f"{summary.cycles} cycles: "
+        + ", ".join(f"{k} {v}" for k, v in sorted(summary.actions.items())),
+        highlight=False,
+    )
+    out.print(f"audit log: {target} (verify: safecase audit verify {target})", highlight=False)
+
+
+def _run_recorded(
+    cfg: SafecaseConfig,
+    source: SimSource | LogSource,
+    target: Path,
+    max_scans: int | None,
+    duration_s: float | None,
+    measured_clock: bool,
+) -> RunSummary:
+    """The simulator or a log, with a progress bar; the summary holds the simulator's verdict."""
+    summary = RunSummary(source.name, audit_path=target)
+    total = source.n_frames if isinstance(source, SimSource) else None
+    with Progress(
+        TextColumn(f"[bold]{source.name}[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("scans"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+    ) as bar:
+        task = bar.add_task("run", total=total)
+        outputs: Iterator[CycleOutput] = run_audited(
+            cfg,
+            source,
+            audit_path=target,
+            max_scans=max_scans,
+            duration_s=duration_s,
+            measured_clock=measured_clock,
+        )
+        for o in outputs:
+            summary.add(o)
+            bar.update(task, completed=summary.cycles)
+    if isinstance(source, SimSource):
+        summary.sim = source.result()
+    return summary
+
+
+def _report(cfg: SafecaseConfig, summary: RunSummary, log: LogSource | None) -> None:
+    sim = summary.sim
+    table = Table(title=f"safecase run: {summary.name}", show_header=False)
+    table.add_row("config hash", config_hash(cfg)[:16])
+    table.add_row("cycles", str(summary.cycles))
+    table.add_row("commands", ", ".join(f"{k} {v}" for k, v in sorted(summary.actions.items())))
+    table.add_row(
+        "reasons", ", ".join(f"{k} {v}" for k, v in summary.reasons.most_common(6)) or "-"
+    )
+    if log is not None:
+        skipped = ", ".join(f"{k} {v}" for k, v in log.skipped.items() if v) or "none"
+        table.add_row("scans skipped", skipped)
+        rate = log.stamps.restamp_hz
+        table.add_row("stamps", "as recorded" if rate is None else f"re-stamped at {rate:g} Hz")
+    if sim is not None:
+        speeds = contact_speeds(sim)
+        contact = (
+            "none"
+            if not speeds.size
+            else ", ".join(f"{v:.2f} m/s" for v in speeds) + " (robot speed at contact)"
+        )
+        table.add_row("contacts", contact)
+        table.add_row(
+            "closest approach", f"{float(np.min(sim.min_separation_m, initial=np.inf)):.2f} m"
+        )
+        table.add_row(
+            "progress",
+            f"{sim.ego_log['arc_m'][-1]:.1f} of {sim.ego_spec.route.length_m:.1f} m in "
+            f"{sim.ego_log['t_s'][-1]:.1f} s",
+        )
+    cycle = np.asarray(summary.cpu_s) * 1e3
+    if cycle.size:
+        table.add_row(
+            "cycle CPU time",
+            f"p50 {np.median(cycle):.1f} ms, p99 {np.percentile(cycle, 99):.1f} ms",
+        )
+    table.add_row("audit log", str(summary.audit_path))
+    out.print(table)
+    out.print(f"verify with: safecase audit verify {summary.audit_path}", highlight=False)

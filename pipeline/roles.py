@@ -1,0 +1,141 @@
+"""The roles of the perception chain, each a small protocol (SR-TRK-*, -CLS-*, -FUS-*, -PRED-*).
+
+:class:`pipeline.perception.Perception` is composed of one component per role, declared in its
+constructor; each role's default implementation lives in the role's own module
+(:class:`~pipeline.points.RangeFilter`, :class:`~pipeline.cluster.dbscan.DbscanClusterer`,
+:class:`~pipeline.shape.box.BoxShapes`, :class:`~pipeline.track.tracker.Tracker` with
+:class:`~pipeline.track.associate.CascadeAssociator`,
+:class:`~pipeline.features.TrackFeatureExtractor`, :class:`~pipeline.classify.model.Classifier`,
+:class:`~pipeline.fusion.GatedFusion`, :class:`~pipeline.predict.KinematicPredictor`). A second
+implementation of a role (an L-shape fit beside the box, JPDA beside the Hungarian cascade)
+plugs in beside the default without touching the chain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+from pipeline.types import (
+    BoolArray,
+    Classification,
+    Clusters,
+    CycleCounts,
+    Detections,
+    FloatArray,
+    FusedTracks,
+    IntArray,
+    Predictions,
+    RadarDetections,
+    Scan,
+    ScanPoints,
+    ThermalDetections,
+    TrackFeatures,
+    Tracks,
+)
+from pipeline.types.tracking import Partition
+
+__all__ = [
+    "Associator",
+    "Clusterer",
+    "FeatureExtractor",
+    "FreshnessGuard",
+    "Fusion",
+    "Predictor",
+    "ScanFilter",
+    "ShapeEstimator",
+    "TrackClassifier",
+    "TrackerRole",
+]
+
+
+class ScanFilter(Protocol):
+    """Beams to Cartesian points in the scan's frame, invalid ranges dropped and counted."""
+
+    def points(self, scan: Scan) -> ScanPoints: ...
+
+
+class Clusterer(Protocol):
+    """Points to a partition: a cluster label per point (-1 for none), clusters kept by size."""
+
+    def partition(self, points: ScanPoints) -> Partition: ...
+
+
+class ShapeEstimator(Protocol):
+    """A partition to clusters with their geometry: centroid, hull, oriented box, ends."""
+
+    def clusters(self, points: ScanPoints, partition: Partition) -> Clusters: ...
+
+
+class Associator(Protocol):
+    """Gated track-detection costs to one-to-one matches, by priority group.
+
+    ``cost`` is (tracks, detections) with ``inf`` where a pair is outside the gates; each mask
+    of ``groups`` selects the tracks matched in that round. Returns the detection matched to
+    each track (-1 none) and which detections are left free.
+    """
+
+    def associate(
+        self, cost: FloatArray, groups: Sequence[BoolArray]
+    ) -> tuple[IntArray, BoolArray]: ...
+
+
+class TrackerRole(Protocol):
+    """Detections of one scan in, the tracks after that scan out (stamped, in order).
+
+    ``last_counts`` is the account of the last step; :meth:`reset` forgets every track.
+    """
+
+    @property
+    def last_counts(self) -> CycleCounts | None: ...
+
+    def step(self, detections: Detections) -> Tracks: ...
+
+    def reset(self) -> None: ...
+
+
+class FeatureExtractor(Protocol):
+    """The classifier's feature row of every track."""
+
+    def features(
+        self, tracks: Tracks, clusters: Clusters | None, robot_xy_m: tuple[float, float]
+    ) -> TrackFeatures: ...
+
+
+class TrackClassifier(Protocol):
+    """Feature rows to classes with probabilities and a confidence per track."""
+
+    @property
+    def class_names(self) -> tuple[str, ...]: ...
+
+    def classify(self, features: TrackFeatures) -> Classification: ...
+
+
+class FreshnessGuard(Protocol):
+    """True where a reading stamped ``stamp_s`` may still be used at ``now_s`` (a safety
+    formula: :func:`safety.model.freshness.is_fresh` is the one the runtime gives)."""
+
+    def __call__(
+        self, now_s: Any, stamp_s: Any, max_age_s: Any, skew_s: Any, guard_s: Any = ...
+    ) -> Any: ...
+
+
+class Fusion(Protocol):
+    """Thermal and radar detections fused into the tracks at decision time ``now_s``."""
+
+    def fuse(
+        self,
+        now_s: float,
+        tracks: Tracks,
+        confidence: FloatArray,
+        thermal: ThermalDetections | None,
+        radar: RadarDetections | None,
+    ) -> FusedTracks: ...
+
+
+class Predictor(Protocol):
+    """Where each track may be within the horizon: prediction rows, one or two per track."""
+
+    def predict(
+        self, tracks: Tracks, features: TrackFeatures, classification: Classification
+    ) -> Predictions: ...

@@ -1,0 +1,51 @@
+"""What a source delivers per cycle: a stamped frame of scan, pose and detections."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.types.core import FloatArray, Scan, frozen_array
+from pipeline.types.drivers import DriverHealth
+from pipeline.types.fusion import RadarDetections, ThermalDetections
+
+Pose = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One cycle's input from a source (:mod:`pipeline.sources`), in the robot frame.
+
+    ``scan`` is the newest revolution, or None when nothing arrived in time (a live source's
+    tick, which the monitors turn into STOP). ``received_s`` is when the frame became available
+    on the decision clock [s]. ``pose`` places the robot frame in the tracking (odometry) frame
+    at the scan's stamp, ``(x_m, y_m, yaw_rad)``; None when the source has no odometry (tracking
+    then happens in the robot frame). ``thermal`` and ``radar`` are detections in the robot
+    frame; ``health`` is a serial link's state. ``route_m`` (k, 2), when the source knows it, is
+    the robot's planned route in the tracking frame and ``route_arc_m`` how far along it the
+    robot is at ``received_s``; without it the path ahead is straight along the robot's heading.
+    """
+
+    scan: Scan | None
+    received_s: float
+    pose: Pose | None = None
+    thermal: ThermalDetections | None = None
+    radar: RadarDetections | None = None
+    health: DriverHealth | None = None
+    route_m: FloatArray | None = None
+    route_arc_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.received_s):
+            raise ValueError(f"Frame: received_s must be finite, got {self.received_s!r}")
+        if self.route_m is not None:
+            route = frozen_array(self.route_m)
+            if route.ndim != 2 or route.shape[1] != 2 or route.shape[0] < 2:
+                raise ValueError(f"Frame: route_m must be (k >= 2, 2), got {route.shape}")
+            object.__setattr__(self, "route_m", route)
+
+    @property
+    def stamp_s(self) -> float:
+        """The scan's stamp, or the time received when there is no scan [s]."""
+        return self.received_s if self.scan is None else self.scan.stamp_s
