@@ -15,6 +15,7 @@ from evidence.profiles import examples
 from evidence.record import current
 from pipeline.config import SafecaseConfig
 from pipeline.errors import GeometryError
+from pipeline.frames import to_parent
 from pipeline.types import ConvexPolygons
 from properties.geometry_cases import convex_points
 from properties.oracles.geometry import exact_point_outside_sq, shapely_polygons
@@ -54,9 +55,9 @@ def test_swept_hull_contains_every_footprint(footprint: ConvexPolygons, traj: Tr
     for t in range(traj.n):
         hull = hulls.vertex_list(t)
         slack_sq = Fraction(float(hulls.slack_m[t])) ** 2
-        c, s = np.cos(traj.theta_rad[:, t]), np.sin(traj.theta_rad[:, t])
-        px = c[:, None] * f[:, 0] - s[:, None] * f[:, 1] + traj.x_m[:, t, None]
-        py = s[:, None] * f[:, 0] + c[:, None] * f[:, 1] + traj.y_m[:, t, None]
+        # Placed by the one rigid transform (rounding below the contact tolerance).
+        pose = (traj.x_m[:, t, None], traj.y_m[:, t, None], traj.theta_rad[:, t, None])
+        px, py = to_parent(pose, f[:, 0], f[:, 1])
         for x, y in zip(px.ravel(), py.ravel(), strict=True):
             outside = exact_point_outside_sq((float(x), float(y)), hull)
             assert outside <= slack_sq, f"footprint vertex ({x}, {y}) outside hull {t}"

@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pipeline.errors import DegeneratePolygonError, GeometryError, NonFiniteGeometryError
+from pipeline.frames import to_parent
 from pipeline.types import ConvexPolygons, FloatArray, IntArray
 
 __all__ = [
@@ -425,11 +426,8 @@ def transform_polygons(
     for name, value in (("x_m", x), ("y_m", y), ("theta_rad", theta)):
         if not np.all(np.isfinite(value)):
             raise NonFiniteGeometryError(f"transform_polygons: {name} is not finite: {value!r}")
-    c, s = np.cos(theta), np.sin(theta)
-    vx, vy = polygons.vertices_m[0], polygons.vertices_m[1]
     out = np.empty_like(polygons.vertices_m)
-    out[0] = c * vx - s * vy + x
-    out[1] = s * vx + c * vy + y
+    out[0], out[1] = to_parent((x, y, theta), polygons.vertices_m[0], polygons.vertices_m[1])
     magnitude = np.abs(out).max(axis=(0, 1))
     if np.any(magnitude > MAX_COORD_M):
         raise NonFiniteGeometryError(f"transform_polygons: result exceeds +/-{MAX_COORD_M:g} m")

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pipeline.config import GeometrySection
+from pipeline.frames import to_parent
 from pipeline.types import ConvexPolygons, FloatArray, IntArray, SweptPathReport, frozen_array
 from safety.geometry.polygons import (
     MAX_COORD_M,
@@ -154,8 +155,10 @@ def _placed_points(
         raise GeometryError(f"footprint: expected one polygon, got {footprint.n}")
     fx = footprint.vertices_m[0, : footprint.counts[0], 0]
     fy = footprint.vertices_m[1, : footprint.counts[0], 0]
-    c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
-    return c * fx - s * fy + x[..., None], s * fx + c * fy + y[..., None]
+    placed: tuple[FloatArray, FloatArray] = to_parent(
+        (x[..., None], y[..., None], theta[..., None]), fx, fy
+    )
+    return placed
 
 
 def swept_hulls(

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.frames import to_parent
 from pipeline.types import BoolArray, FloatArray, IntArray, frozen_array
 
 __all__ = [
@@ -178,13 +179,9 @@ def pose_points(
     ``points`` is ``(V, 2)`` (the same for every pose) or ``(T, V, 2)``; the pose arrays are
     ``(T,)``. Returns ``(T, V, 2)``.
     """
-    c = np.cos(heading_rad)[:, None]
-    s = np.sin(heading_rad)[:, None]
-    px = points[..., 0]
-    py = points[..., 1]
-    out = np.empty((*np.broadcast_shapes(c.shape, px.shape), 2), dtype=np.float64)
-    out[..., 0] = c * px - s * py + x_m[:, None]
-    out[..., 1] = s * px + c * py + y_m[:, None]
+    pose = (x_m[:, None], y_m[:, None], heading_rad[:, None])
+    px, py = to_parent(pose, points[..., 0], points[..., 1])
+    out: FloatArray = np.stack(np.broadcast_arrays(px, py), axis=-1)
     return out
 
 
