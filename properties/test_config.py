@@ -7,11 +7,15 @@ import tomllib
 from random import Random
 from typing import Any
 
+import numpy as np
 import pytest
-from hypothesis import given, reject
+from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel
 
+from evidence.profiles import examples
+from evidence.record import current
+from pipeline.classify.model import Classifier
 from pipeline.config import (
     SafecaseConfig,
     config_hash,
@@ -20,7 +24,15 @@ from pipeline.config import (
     validate_config,
 )
 from pipeline.errors import ConfigError
-from properties.strategies import ConfigField, config_fields, out_of_range_value, valid_value
+from pipeline.types import Scan, ThermalDetections
+from properties.strategies import (
+    NUMERIC_FIELDS,
+    ConfigField,
+    config_fields,
+    out_of_range_value,
+    valid_value,
+)
+from safety.runtime import CycleInput, Runtime
 
 
 @pytest.mark.requirement("SR-CFG-1")
@@ -104,3 +116,56 @@ def test_defaults_are_valid_and_frozen() -> None:
     with pytest.raises(ValueError, match="frozen"):
         config.cluster.eps_m = 1.0  # type: ignore[misc]
     assert config == SafecaseConfig()
+
+
+@pytest.fixture(scope="module")
+def classifier() -> Classifier:
+    """The packaged model, loaded once (the property changes one key at a time)."""
+    return Classifier.from_config(default_config().classify)
+
+
+def _room_scan() -> Scan:
+    """A 360-beam scan of a 6 m x 4 m room around the scanner, a box 2 m ahead."""
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    c, s = np.cos(angles), np.sin(angles)
+    with np.errstate(divide="ignore"):
+        walls = np.minimum(np.abs(3.0 / c), np.abs(2.0 / s))
+    box = (np.abs(angles) < 0.12) * 2.0
+    return Scan(10.0, angles, np.where(box > 0, box, walls))
+
+
+@pytest.mark.requirement("SR-CFG-1", kind="property", code=["pipeline/config/__init__.py"])
+@pytest.mark.parametrize("field", NUMERIC_FIELDS, ids=lambda f: f.dotted)
+@settings(max_examples=examples(8), deadline=None)
+@given(data=st.data())
+def test_a_configuration_that_loads_runs_and_one_that_does_not_is_refused_at_load(
+    data: st.DataObject, field: ConfigField, classifier: Classifier
+) -> None:
+    """Every cross-section rule is checked when the configuration loads: a configuration that
+    loads never makes a cycle fail on itself (only a scan over ``scan.max_beams`` may), and
+    thermal-only pedestrians keep the most cautious margin tier (SR-FUS-3)."""
+    value = data.draw(valid_value(field), label="value")
+    try:
+        config = validate_config({field.section: {field.key: value}}, origin="t.toml")
+    except ConfigError as exc:
+        refused = exc.lines
+    else:
+        refused = []
+    if refused:
+        current().count("single-key changes", "refused at load")
+        assert all(line.startswith("t.toml: ") for line in refused), refused
+        return
+    current().count("single-key changes", "loaded and ran")
+    runtime = Runtime(config, classifier=classifier)
+    person = ThermalDetections(np.array([10.05]), np.array([1.0]), np.array([0.3]), np.ones(1))
+    out = runtime.step(
+        CycleInput.standing(_room_scan(), 10.1, config, charge_s=0.01, thermal=person)
+    )
+    failed = [r for r in out.command.reasons if r.startswith("stage:")]
+    assert all(r.startswith("stage:points: ScanError") for r in failed), (field.dotted, failed)
+    # A thermal-only pedestrian's confidence falls in the tier of no confidence at all.
+    no = np.zeros(1, dtype=bool)
+    ped = np.array([config.fusion.thermal_only_confidence])
+    assert (
+        runtime.envelopes.margins(ped, no)[1][0] == runtime.envelopes.margins(np.zeros(1), no)[1][0]
+    )

@@ -95,6 +95,12 @@ class GeometrySection(Section):
         return self
 
 
+# The largest costmap grid [cells]: 2000 x 2000 (100 m x 100 m at 5 cm).
+MAX_COSTMAP_CELLS = 4_000_000
+# The most samples of the path ahead per cycle: 100 m at 2.5 cm.
+MAX_PATH_SAMPLES = 4_000
+
+
 class CostmapSection(Section):
     """Grid costmap of envelopes (SR-PRED-2).
 
@@ -109,6 +115,18 @@ class CostmapSection(Section):
     centre_x_m: float = Field(0.0, ge=-1000.0, le=1000.0)
     centre_y_m: float = Field(0.0, ge=-1000.0, le=1000.0)
     contact_tolerance_m: float = Field(1e-9, ge=0.0, le=1e-3)
+
+    @model_validator(mode="after")
+    def _bounded_grid(self) -> Self:
+        # SR-TIM-3: the grid is rasterized every cycle, so its size is bounded work.
+        cells = (self.width_m / self.resolution_m) * (self.height_m / self.resolution_m)
+        if not cells <= MAX_COSTMAP_CELLS:
+            raise ValueError(
+                f"costmap.width_m x costmap.height_m at costmap.resolution_m ({self.width_m} x "
+                f"{self.height_m} m at {self.resolution_m} m) makes {cells:.4g} cells; allowed: "
+                f"at most {MAX_COSTMAP_CELLS}"
+            )
+        return self
 
 
 class MonitorSection(Section):
@@ -175,3 +193,15 @@ class RuntimeSection(Section):
     planner_check: bool = False
     costmap: bool = True
     sim_cycle_s: float = Field(0.05, ge=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _bounded_path(self) -> Self:
+        # SR-TIM-3: the path ahead is sampled every cycle, so its length is bounded work.
+        samples = self.path_lookahead_m / self.path_step_m
+        if not samples <= MAX_PATH_SAMPLES:
+            raise ValueError(
+                f"runtime.path_lookahead_m / runtime.path_step_m ({self.path_lookahead_m} / "
+                f"{self.path_step_m}) makes {samples:.4g} path samples; allowed: at most "
+                f"{MAX_PATH_SAMPLES}"
+            )
+        return self

@@ -31,6 +31,19 @@ def test_invalid_config_exits_2_with_one_line(tmp_path: Path) -> None:
     assert "cluster.eps_m = -0.15" in done.stderr
 
 
+@pytest.mark.requirement("SR-CFG-1", kind="example")
+def test_a_cross_section_rule_is_checked_at_load(tmp_path: Path) -> None:
+    unsafe = tmp_path / "unsafe.toml"
+    unsafe.write_text("[fusion]\nthermal_only_confidence = 0.9\n")
+    done = run_safecase("config", "check", str(unsafe))
+    assert done.returncode == 2
+    assert done.stderr.strip() == (
+        f"config error: {unsafe}: fusion.thermal_only_confidence (0.9) must be below "
+        "classify.medium_confidence_min (0.5) so that thermal-only pedestrians get the most "
+        "cautious margin tier"
+    )
+
+
 def test_config_show_round_trips(tmp_path: Path) -> None:
     shown = run_safecase("config", "show")
     assert shown.returncode == 0
