@@ -24,7 +24,7 @@ from typing import Any, Literal
 from evidence.catalogue import Catalogue, Requirement
 
 SCHEMA_ID = "safecase-evidence"
-SCHEMA_VERSION = "1.0"
+SCHEMA_VERSION = "1.1"
 
 Outcome = Literal["passed", "failed", "skipped", "error"]
 RequirementVerdict = Literal["SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED"]
@@ -158,22 +158,36 @@ class Bundle:
     session_exit_status: int
     schema: str = SCHEMA_ID
     schema_version: str = SCHEMA_VERSION
+    selection: dict[str, Any] | None = None
+
+    @property
+    def is_slice(self) -> bool:
+        """True when the session ran a selection of the suite (``-k``, ``-m``, deselected
+        tests): then only the requirements its tests touched are judged."""
+        return self.selection is not None
 
     @property
     def summary(self) -> dict[str, Any]:
         """Counts of test outcomes and requirement verdicts, and the overall result."""
         outcomes = Counter(item.effective_outcome for item in self.tests)
         verdicts = Counter(r.verdict for r in self.requirements)
-        blocking = [
-            r.id for r in self.requirements if r.status == "claimed" and r.verdict != "SATISFIED"
-        ]
+        judged = [r for r in self.requirements if not self.is_slice or r.evidence]
+        blocking = [r.id for r in judged if r.status == "claimed" and r.verdict != "SATISFIED"]
+        passed = not blocking and self.session_exit_status == 0
         return {
             "tests": {k: outcomes.get(k, 0) for k in ("passed", "failed", "error", "skipped")},
             "requirements": {
                 k: verdicts.get(k, 0) for k in ("SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED")
             },
+            "scope": "slice" if self.is_slice else "suite",
+            "judged_requirements": [r.id for r in judged],
             "blocking_requirements": blocking,
-            "overall": "PASS" if not blocking and self.session_exit_status == 0 else "FAIL",
+            "overall": "PASS" if passed else "FAIL",
+            "certification": (
+                ("SLICE PASS" if passed else "SLICE FAIL")
+                if self.is_slice
+                else ("CERTIFIED" if passed else "NOT CERTIFIED")
+            ),
         }
 
     def family_verdicts(self) -> dict[str, dict[str, int]]:
@@ -198,6 +212,7 @@ class Bundle:
             "requirements": [asdict(r) for r in self.requirements],
             "tests": [asdict(t) for t in self.tests],
             "session_exit_status": self.session_exit_status,
+            "selection": self.selection,
         }
 
     def to_json(self) -> str:

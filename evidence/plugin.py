@@ -55,6 +55,7 @@ class _State:
     benchmarks: dict[str, dict[str, Any]] = field(default_factory=dict)
     bundle_dir: Path | None = None
     bundle: Bundle | None = None
+    n_deselected: int = 0
 
 
 STATE = pytest.StashKey[_State]()
@@ -119,7 +120,47 @@ def pytest_configure(config: pytest.Config) -> None:
         hypothesis_settings.get_current_profile_name(),
     )
     set_active_profile(profile or hypothesis_settings.get_current_profile_name())
+    if _distributed(config) and (
+        config.getoption("safecase_out") or config.getoption("safecase_enforce")
+    ):
+        # Workers would each hold part of the evidence and the bundle would record none.
+        raise pytest.UsageError(
+            "safecase: evidence cannot be collected under pytest-xdist (-n/--dist): run "
+            "without -n, or without --safecase-out/--safecase-enforce"
+        )
     config.stash[STATE] = _State(catalogue, safecase_config, config_path)
+
+
+def _distributed(config: pytest.Config) -> bool:
+    """True when pytest-xdist will spread the tests over worker processes."""
+    if not config.pluginmanager.has_plugin("xdist"):
+        return False
+    workers = getattr(config.option, "numprocesses", None)
+    return bool(workers) or getattr(config.option, "dist", "no") != "no"
+
+
+def pytest_deselected(items: list[pytest.Item]) -> None:
+    """Count deselected tests: a session that leaves any out is a slice of the suite."""
+    if items:
+        state = items[0].config.stash.get(STATE, None)
+        if state is not None:
+            state.n_deselected += len(items)
+
+
+def _selection(session: pytest.Session, state: _State) -> dict[str, Any] | None:
+    """What the session selected, or None when it ran the whole suite."""
+    keyword = session.config.getoption("keyword", "") or ""
+    marks = session.config.getoption("markexpr", "") or ""
+    if not (keyword or marks or state.n_deselected):
+        return None
+    expression = " ".join(
+        part for part in (keyword and f"-k {keyword!r}", marks and f"-m {marks!r}") if part
+    )
+    return {
+        "expression": expression or "deselected by a plugin",
+        "selected": len(session.items),
+        "deselected": state.n_deselected,
+    }
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -412,6 +453,7 @@ def build_bundle(session: pytest.Session, exitstatus: int) -> Bundle:
         requirements=compute_verdicts(state.catalogue, items),
         tests=items,
         session_exit_status=int(exitstatus),
+        selection=_selection(session, state),
     )
 
 

@@ -83,7 +83,7 @@ def render_markdown(bundle: Bundle) -> str:
     s = bundle.summary
     p = bundle.provenance
     lines = [
-        f"# safecase certification report: {s['overall']}",
+        f"# safecase certification report: {s['certification']}",
         "",
         f"- created: {bundle.created_utc}; profile: `{bundle.profile}`",
         f"- commit: `{p['git']['commit']}`" + (" (dirty tree)" if p["git"]["dirty"] else ""),
@@ -93,6 +93,14 @@ def render_markdown(bundle: Bundle) -> str:
         "- requirements: " + ", ".join(f"{v} {k}" for k, v in s["requirements"].items()),
         "",
     ]
+    if bundle.selection is not None:
+        sel = bundle.selection
+        lines += [
+            f"**A slice of the suite, not a certification:** {sel['expression']} selected "
+            f"{sel['selected']} test(s) and left out {sel['deselected']}; only the "
+            f"{len(s['judged_requirements'])} requirement(s) its tests touched are judged.",
+            "",
+        ]
     if s["blocking_requirements"]:
         lines += [f"**Blocking:** {', '.join(s['blocking_requirements'])}", ""]
     lines += [
@@ -150,13 +158,17 @@ def render_markdown(bundle: Bundle) -> str:
 
 
 def render_junit(bundle: Bundle) -> str:
-    """JUnit XML with one testcase per item and its requirement IDs as properties."""
+    """JUnit XML with one testcase per item and its requirement IDs as properties, and the
+    certification verdict: a property of the suite, and one failed testcase (classname
+    ``requirements``) per judged requirement that blocks it, so a dashboard counts it."""
     outcomes = Counter(t.effective_outcome for t in bundle.tests)
+    summary = bundle.summary
+    blocking = {r.id: r for r in bundle.requirements if r.id in summary["blocking_requirements"]}
     suite = ET.Element(
         "testsuite",
         name="safecase",
-        tests=str(len(bundle.tests)),
-        failures=str(outcomes.get("failed", 0)),
+        tests=str(len(bundle.tests) + len(blocking)),
+        failures=str(outcomes.get("failed", 0) + len(blocking)),
         errors=str(outcomes.get("error", 0)),
         skipped=str(outcomes.get("skipped", 0)),
         time=f"{sum(t.duration_s for t in bundle.tests):.3f}",
@@ -166,6 +178,12 @@ def render_junit(bundle: Bundle) -> str:
     for key in ("config_hash",):
         ET.SubElement(props, "property", name=key, value=str(bundle.provenance.get(key)))
     ET.SubElement(props, "property", name="profile", value=bundle.profile)
+    ET.SubElement(props, "property", name="certification", value=summary["certification"])
+    ET.SubElement(props, "property", name="scope", value=summary["scope"])
+    for req_id, result in blocking.items():
+        case = ET.SubElement(suite, "testcase", classname="requirements", name=req_id, time="0")
+        why = "; ".join(result.missing) or f"{len(result.failures)} failing item(s)"
+        ET.SubElement(case, "failure", message=f"{result.verdict}: {why}"[:500]).text = result.claim
     for item in bundle.tests:
         module, _, name = item.nodeid.partition("::")
         case = ET.SubElement(

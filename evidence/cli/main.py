@@ -6,6 +6,7 @@ problem and exit code 2, never a traceback (SR-CFG-1; :mod:`evidence.cli.common`
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from importlib import metadata
@@ -14,17 +15,18 @@ from typing import Annotated, Any
 
 import typer
 from rich.table import Table
+from rich.text import Text
 
 from evidence.catalogue import load_catalogue
 from evidence.cli.audit import app as audit_app
-from evidence.cli.common import ConfigOption, err, load_config_or_exit, out, stamp
+from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
 from evidence.cli.run import run_command
 from evidence.cli.sim import app as sim_app
 from evidence.cli.train import train_command
 from evidence.manifest import verify_bundle
 from pipeline.config import config_hash, to_toml
 from pipeline.errors import SafecaseError
-from safety.audit.keys import load_public_key
+from safety.audit.keys import default_key_path, load_or_create_key, load_public_key
 
 app = typer.Typer(
     name="safecase",
@@ -75,24 +77,39 @@ def certify(
     profile: Annotated[
         str, typer.Option(help=f"Hypothesis profile: {', '.join(PROFILES)}.")
     ] = "certify",
-    key: Annotated[
-        Path | None, typer.Option(help="Ed25519 signing key (PEM); created when missing.")
+    signing_key: Annotated[
+        Path | None,
+        typer.Option(
+            help="Ed25519 private key (PEM) that signs the bundle; created when missing "
+            "(default: $SAFECASE_SIGNING_KEY or ~/.config/safecase/signing-key.pem)."
+        ),
     ] = None,
     select: Annotated[
-        str | None, typer.Option("-k", help="Only run tests matching this pytest -k expression.")
+        str | None,
+        typer.Option("-k", help="Run a slice: only tests matching this pytest -k expression."),
     ] = None,
     benchmarks: Annotated[
         bool, typer.Option(help="Run the benchmarks (measurement evidence).")
     ] = True,
 ) -> None:
     """Run the whole suite (properties, proofs, cross-checks, benchmarks) and write a signed
-    evidence bundle to OUT/<stamp>/ (and OUT/latest)."""
+    evidence bundle to OUT/<stamp>/ (and OUT/latest).
+
+    With -k the run is a slice, not a certification: only the requirements its tests touch
+    are judged, and the report and the verdict say so.
+
+    Examples: safecase certify; safecase certify --profile ci -k stopping
+
+    Exit codes: 0 CERTIFIED (or, with -k, every requirement the slice touched is SATISFIED);
+    1 NOT CERTIFIED (or the slice failed); 2 bad options, configuration or signing key, or a
+    -k expression that selects no test.
+    """
     from evidence.run import run_certification
 
     if profile not in PROFILES:
-        err.print(f"[bold red]error:[/] --profile {profile!r}: allowed: {', '.join(PROFILES)}")
-        raise typer.Exit(2)
+        fail(f"--profile {profile!r}: allowed: {', '.join(PROFILES)}")
     cfg = load_config_or_exit(config)
+    _check_signing_key(signing_key, out_dir)
     when = stamp()
     bundle_dir = out_dir / when
     result = run_certification(
@@ -100,34 +117,81 @@ def certify(
         bundle_dir=bundle_dir,
         config_path=config,
         profile=profile,
-        key=key,
+        key=signing_key,
         select=select,
         benchmarks=benchmarks,
         console=err,
     )
+    if result.exit_code == pytest_no_tests_collected():
+        fail(f"-k {select!r} selects no test")
     latest = out_dir / "latest"
-    try:
+    with contextlib.suppress(OSError):
         if latest.is_symlink() or latest.exists():
             latest.unlink()
         latest.symlink_to(when, target_is_directory=True)
-    except OSError:
-        pass
     out.print(f"config hash {config_hash(cfg)[:16]} ({config or 'built-in defaults'})")
-    _print_family_lines(result.bundle)
+    bundle = result.bundle
+    if bundle is not None and bundle.is_slice:
+        _print_slice_lines(bundle)
+    else:
+        _print_family_lines(bundle)
     out.print(f"report: {bundle_dir / 'report.html'}")
     out.print(f"bundle: {bundle_dir} (verify with: safecase evidence verify {bundle_dir})")
-    if result.exit_code != 0:
-        blocking = result.bundle.summary["blocking_requirements"] if result.bundle else []
-        if blocking:
-            out.print(
-                f"[bold red]NOT CERTIFIED:[/] claimed but not satisfied: {', '.join(blocking)}"
-            )
-        else:
-            out.print(
-                f"[bold red]NOT CERTIFIED:[/] the test session failed (exit {result.exit_code})"
-            )
+    verdict = bundle.summary["certification"] if bundle is not None else "NOT CERTIFIED"
+    blocking = bundle.summary["blocking_requirements"] if bundle is not None else []
+    if result.exit_code != 0 or verdict in ("NOT CERTIFIED", "SLICE FAIL"):
+        why = (
+            f"claimed but not satisfied: {', '.join(blocking)}"
+            if blocking
+            else f"the test session failed (exit {result.exit_code})"
+        )
+        out.print(f"[bold red]{verdict}:[/] {why}")
         raise typer.Exit(1)
+    if verdict == "SLICE PASS":
+        n = len(bundle.summary["judged_requirements"]) if bundle is not None else 0
+        out.print(
+            f"[bold green]SLICE PASS:[/] the {n} requirement(s) this slice touched are SATISFIED "
+            "(a slice is not a certification)"
+        )
+        return
     out.print("[bold green]CERTIFIED:[/] every claimed requirement is SATISFIED")
+
+
+def pytest_no_tests_collected() -> int:
+    """pytest's exit code when no test was selected."""
+    import pytest
+
+    return int(pytest.ExitCode.NO_TESTS_COLLECTED)
+
+
+def _check_signing_key(key: Path | None, out_dir: Path) -> None:
+    """Refuse, before any test runs, a key that cannot sign or that would ship in the bundle."""
+    path = key if key is not None else default_key_path()
+    try:
+        inside = path.resolve().is_relative_to(out_dir.resolve())
+    except OSError:
+        inside = False
+    if inside:
+        fail(f"--signing-key {path}: inside the output folder {out_dir}; keep the key outside")
+    try:
+        load_or_create_key(key)
+    except (SafecaseError, OSError) as exc:
+        fail(f"--signing-key {path}: {exc}")
+
+
+def _print_slice_lines(bundle: Any) -> None:
+    """One line per requirement the slice touched, with its verdict."""
+    sel = bundle.selection
+    out.print(
+        f"SLICE {sel['expression']}: {sel['selected']} test(s) run, {sel['deselected']} left "
+        "out; requirements the slice touched:",
+        highlight=False,
+        markup=False,
+    )
+    judged = set(bundle.summary["judged_requirements"])
+    for r in bundle.requirements:
+        if r.id in judged:
+            out.print(f"  {r.id:12s} {r.status:8s} {r.verdict}", highlight=False, markup=False)
 
 
 def _print_family_lines(bundle: Any) -> None:
@@ -177,7 +241,12 @@ def evidence_verify(
 
 @config_app.command("show")
 def config_show(config: ConfigOption = None) -> None:
-    """Print the effective configuration as TOML, with its hash."""
+    """Print the effective configuration as TOML, with its hash.
+
+    Example: safecase config show --config mine.toml > effective.toml
+
+    Exit codes: 0 printed; 2 invalid configuration (one line per problem).
+    """
     cfg = load_config_or_exit(config)
     out.print(f"# config hash: {config_hash(cfg)}", highlight=False)
     out.print(to_toml(cfg.model_dump(mode="json")), highlight=False, markup=False)
@@ -185,7 +254,14 @@ def config_show(config: ConfigOption = None) -> None:
 
 @config_app.command("check")
 def config_check(config: Annotated[Path, typer.Argument(help="TOML file to validate.")]) -> None:
-    """Validate a configuration file; exit 2 naming every bad key."""
+    """Validate a configuration file: ranges, types, unknown keys and every rule between
+    sections, as `safecase run` and `certify` would load it.
+
+    Example: safecase config check examples/source-warehouse.toml
+
+    Exit codes: 0 valid; 2 invalid (one line per problem naming the key, the value and what
+    is allowed).
+    """
     cfg = load_config_or_exit(config)
     out.print(f"OK: {config} is valid (config hash {config_hash(cfg)})")
 
@@ -194,14 +270,23 @@ def config_check(config: Annotated[Path, typer.Argument(help="TOML file to valid
 def requirements_list(
     family: Annotated[str | None, typer.Option(help="Only this family code, e.g. STOP.")] = None,
 ) -> None:
-    """List the safety requirements catalogue."""
+    """List the safety requirements catalogue (safety/requirements.toml).
+
+    Example: safecase requirements --family STOP
+
+    Exit codes: 0 listed; 2 unknown family.
+    """
     catalogue = load_catalogue()
+    families = sorted({req.family for req in catalogue.requirements})
+    if family is not None and family.upper() not in families:
+        fail(f"--family {family!r}: unknown; known: {', '.join(families)}")
     table = Table("ID", "status", "minimum evidence", "claim", show_lines=False)
     for req in catalogue.requirements:
         if family and req.family != family.upper():
             continue
         minimum = ", ".join(f"{k}>={n}" for k, n in req.minimum)
-        table.add_row(req.id, req.status, minimum, req.claim)
+        # Claims hold brackets ("b in [b_min, b_max]"): plain text, never markup.
+        table.add_row(Text(req.id), Text(req.status), Text(minimum), Text(req.claim))
     out.print(table)
 
 

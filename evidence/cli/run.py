@@ -7,8 +7,10 @@ the scenario served by a device emulator on a pty (``--emulate``), or a recorded
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Iterator
+import signal
+from collections.abc import Generator, Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -94,8 +96,9 @@ def run_command(
     Examples: safecase run --scenario crossing_pedestrian --seed 3;
     safecase run --emulate rplidar --scans 50; safecase run --log walk.bag --odom-topic /odom
 
-    Exit codes: 0 done; 1 the simulated robot touched something while moving; 2 bad options,
-    configuration, device or log.
+    Exit codes: 0 done, or stopped by Ctrl-C or SIGTERM (the audit log is closed either way);
+    1 the simulated robot touched something while moving; 2 bad options, configuration, log,
+    or a device that cannot be opened.
     """
     cfg = load_config_or_exit(config)
     given = (("--device", device), ("--emulate", emulate), ("--log", log))
@@ -114,34 +117,56 @@ def run_command(
     if emulate is not None and emulate not in EMULATORS:
         fail(f"--emulate {emulate!r}: allowed: {', '.join(EMULATORS)}")
     log_dir = Path(cfg.audit.log_dir)
-    try:
-        if device is not None or emulate is not None:
-            source = _device_source(cfg, device, emulate, name, seed, scans)
-            target = audit or log_dir / f"device-{stamp()}.jsonl"
-            _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration)
-            return
-        if log is not None:
-            rule = StampRule(restamp_hz=restamp)
-            source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
-            target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
-            summary = _run_recorded(cfg, source, target, scans, duration, measured_clock)
-            _report(cfg, summary, source)
-            return
-        sim = make_simulation(cfg, name, seed, duration)
-        target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
-        summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock)
-    except (SafecaseError, ValueError, OSError) as exc:
-        fail(str(exc))
-    _report(cfg, summary, None)
-    if plot and summary.sim is not None:
-        from safety.run_plot import run_figure
+    with _stop_on_sigterm():
+        try:
+            if device is not None or emulate is not None:
+                source = _device_source(cfg, device, emulate, name, seed, scans)
+                target = audit or log_dir / f"device-{stamp()}.jsonl"
+                _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration)
+                return
+            if log is not None:
+                rule = StampRule(restamp_hz=restamp)
+                source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
+                target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
+                summary = _run_recorded(cfg, source, target, scans, duration, measured_clock)
+                _report(cfg, summary, source)
+                return
+            sim = make_simulation(cfg, name, seed, duration)
+            target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
+            summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock)
+        except (SafecaseError, ValueError, OSError) as exc:
+            fail(str(exc))
+        _report(cfg, summary, None)
+        if plot and summary.sim is not None:
+            from safety.run_plot import run_figure
 
-        png = target.with_suffix(".png")
-        run_figure(summary).savefig(png, dpi=110)
-        out.print(f"plot: {png}", highlight=False)
-    if summary.moving_contacts:
-        out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
-        raise typer.Exit(1)
+            png = target.with_suffix(".png")
+            run_figure(summary).savefig(png, dpi=110)
+            out.print(f"plot: {png}", highlight=False)
+        if summary.moving_contacts:
+            out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
+            raise typer.Exit(1)
+
+
+def _generator(outputs: Iterator[CycleOutput]) -> Generator[CycleOutput, None, None]:
+    """``outputs`` as the generator it is, so a stop can close it (and the audit log)."""
+    assert isinstance(outputs, Generator)
+    return outputs
+
+
+@contextlib.contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """SIGTERM (what service managers send) stops the run as Ctrl-C does: the current cycle's
+    record is written, the audit log closed and the summary printed."""
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _device_source(
@@ -171,6 +196,20 @@ def _device_source(
     return EmulatedSource(driver, period, sim.scans(), 1.0 / period_s)
 
 
+# Which reason a cycle's line shows first: the link, then the other monitors, then a failed
+# stage, then the governor (the first that any of the cycle's reasons starts with).
+_REASON_ORDER = ("driver:", "scan_freshness:", "clock:", "deadline:", "operating_domain:", "")
+
+
+def _why(reasons: tuple[str, ...]) -> str:
+    """The reason worth a line: the scanner link's before the others (``_REASON_ORDER``)."""
+    for prefix in _REASON_ORDER:
+        found = [r for r in reasons if r.startswith(prefix) and not r.startswith("governor:")]
+        if found:
+            return f" ({found[0]})"
+    return f" ({reasons[0]})" if reasons else ""
+
+
 def _run_live(
     cfg: SafecaseConfig,
     source: FrameSource,
@@ -178,20 +217,23 @@ def _run_live(
     max_scans: int,
     duration_s: float | None,
 ) -> None:
-    """A live source: one line per cycle, then the command mix."""
+    """A live source: one line per cycle, then the command mix (also when stopped)."""
     summary = RunSummary(source.name, audit_path=target)
-    outputs = run_audited(
-        cfg, source, audit_path=target, max_scans=max_scans, duration_s=duration_s
+    outputs = _generator(
+        run_audited(cfg, source, audit_path=target, max_scans=max_scans, duration_s=duration_s)
     )
-    for o in outputs:
-        summary.add(o)
-        c = o.command
-        why = f" ({c.reasons[0]})" if c.reasons else ""
-        out.print(
-            f"{summary.cycles:5d} {c.action.value:7s} {c.speed_mps:5.2f} m/s{why}",
-            highlight=False,
-            markup=False,
-        )
+    try:
+        for o in outputs:
+            summary.add(o)
+            c = o.command
+            out.print(
+                f"{summary.cycles:5d} {c.action.value:7s} {c.speed_mps:5.2f} m/s{_why(c.reasons)}",
+                highlight=False,
+                markup=False,
+            )
+    except KeyboardInterrupt:
+        outputs.close()  # closes the audit log before the summary
+        out.print("stopped on request", highlight=False)
     out.print(
         f"{summary.cycles} cycles: "
         + ", ".join(f"{k} {v}" for k, v in sorted(summary.actions.items())),
@@ -221,17 +263,23 @@ def _run_recorded(
         transient=True,
     ) as bar:
         task = bar.add_task("run", total=total)
-        outputs: Iterator[CycleOutput] = run_audited(
-            cfg,
-            source,
-            audit_path=target,
-            max_scans=max_scans,
-            duration_s=duration_s,
-            measured_clock=measured_clock,
+        outputs = _generator(
+            run_audited(
+                cfg,
+                source,
+                audit_path=target,
+                max_scans=max_scans,
+                duration_s=duration_s,
+                measured_clock=measured_clock,
+            )
         )
-        for o in outputs:
-            summary.add(o)
-            bar.update(task, completed=summary.cycles)
+        try:
+            for o in outputs:
+                summary.add(o)
+                bar.update(task, completed=summary.cycles)
+        except KeyboardInterrupt:
+            outputs.close()  # closes the audit log before the summary
+            out.print("stopped on request", highlight=False)
     if isinstance(source, SimSource):
         summary.sim = source.result()
     return summary

@@ -259,19 +259,39 @@ def validate_config(data: Mapping[str, Any], origin: str = "config") -> Safecase
         raise ConfigError(_format_errors(exc, origin)) from None
 
 
+# A configuration is a few kilobytes; anything far larger is not one (and /dev/zero never ends).
+MAX_CONFIG_BYTES = 1 << 20
+
+
 def load_config(path: Path | str | None = None) -> SafecaseConfig:
     """Load the defaults, overridden by the TOML file at ``path`` when given (SR-CFG-1)."""
     if path is None:
         return default_config()
     file = Path(path)
     try:
-        text = file.read_text(encoding="utf-8")
+        if not file.is_file():
+            what = "a folder" if file.is_dir() else "not a regular file"
+            if not file.exists():
+                what = "no such file"
+            raise ConfigError([f"{file}: cannot read the configuration file: {what}"])
+        with file.open("rb") as handle:
+            raw = handle.read(MAX_CONFIG_BYTES + 1)
     except OSError as exc:
         raise ConfigError([f"{file}: cannot read the configuration file: {exc.strerror}"]) from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError([f"{file}: larger than {MAX_CONFIG_BYTES} bytes: not a configuration"])
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            [f"{file}: not UTF-8 text (byte {exc.start}: {raw[exc.start : exc.start + 1]!r})"]
+        ) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError([f"{file}: not valid TOML: {exc}"]) from None
+    except RecursionError:
+        raise ConfigError([f"{file}: not valid TOML: nested too deeply"]) from None
     return validate_config(data, origin=str(file))
 
 

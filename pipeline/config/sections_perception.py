@@ -16,7 +16,10 @@ class DriverSection(Section):
     distance; "standard" nodes carry three check bits only (see README "Serial drivers").
     ``incomplete_policy``: a revolution that lost beams to a rejected frame is emitted with
     ``complete=False`` ("mark") or withheld ("drop"); its rejected beams are never emitted.
-    ``max_step_deg``: largest plausible angle step between two RPLIDAR nodes.
+    ``max_step_deg``: largest plausible angle step between two RPLIDAR nodes. A device that
+    never answers is given up after ``max_reconnects`` attempts ``reconnect_backoff_s`` apart;
+    one that answered and went away is retried until the run ends, the wait doubling up to
+    ``reconnect_backoff_max_s``.
     """
 
     protocol: Literal["rplidar", "scip"] = "rplidar"
@@ -25,12 +28,22 @@ class DriverSection(Section):
     read_timeout_s: float = Field(0.05, gt=0.0, le=5.0)
     silent_timeout_s: float = Field(0.5, gt=0.0, le=30.0)
     reconnect_backoff_s: float = Field(0.2, ge=0.0, le=30.0)
+    reconnect_backoff_max_s: float = Field(2.0, ge=0.0, le=300.0)
     max_reconnects: int = Field(10, ge=0, le=10_000)
     rplidar_mode: Literal["standard", "express"] = "express"
     scip_command: Literal["MD", "MS"] = "MD"
     incomplete_policy: Literal["mark", "drop"] = "mark"
     max_beams_per_revolution: int = Field(8192, ge=16, le=65_536)
     max_step_deg: float = Field(10.0, gt=0.0, le=90.0)
+
+    @model_validator(mode="after")
+    def _backoff_ordered(self) -> Self:
+        if self.reconnect_backoff_max_s < self.reconnect_backoff_s:
+            raise ValueError(
+                f"driver.reconnect_backoff_max_s ({self.reconnect_backoff_max_s}) must not be "
+                f"below driver.reconnect_backoff_s ({self.reconnect_backoff_s})"
+            )
+        return self
 
 
 class ScanSection(Section):

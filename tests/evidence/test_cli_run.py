@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
 from pathlib import Path
 
 import pytest
 
 from pipeline.config import default_config
-from properties.cli_runner import run_safecase
+from properties.cli_runner import SAFECASE, run_safecase
 from properties.log_cases import drive, write_carmen, write_ros2_bag
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -80,3 +83,43 @@ def test_run_refuses_two_sources_and_log_options_without_a_log(tmp_path: Path) -
     done = run_safecase("run", "--log", str(tmp_path / "none.bag"), cwd=tmp_path)
     assert done.returncode == 2
     assert "none.bag: no such file or folder" in done.stderr
+
+
+@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/run.py"])
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_run_closes_its_audit_log(tmp_path: Path, signum: int) -> None:
+    """SIGTERM (a service manager) and Ctrl-C both close the log: verify says INTACT."""
+    audit = tmp_path / "stopped.jsonl"
+    env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="200")
+    command = [*SAFECASE, "run", "--emulate", "rplidar", "--scans", "500", "--audit", str(audit)]
+    with subprocess.Popen(
+        command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    ) as proc:
+        assert proc.stdout is not None
+        for line in proc.stdout:  # wait until cycles run
+            if line.strip().startswith("5 "):
+                break
+        proc.send_signal(signum)
+        rest, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    assert "stopped on request" in rest
+    assert "cycles:" in rest
+    verified = run_safecase("audit", "verify", str(audit), cwd=tmp_path)
+    assert verified.returncode == 0, verified.stdout + verified.stderr
+    assert "INTACT" in verified.stdout
+
+
+@pytest.mark.requirement("SR-DRV-3", kind="example", code=["evidence/cli/run.py"])
+def test_run_device_that_cannot_be_opened_exits_2_naming_it(tmp_path: Path) -> None:
+    config = tmp_path / "fast.toml"
+    config.write_text("[driver]\nmax_reconnects = 2\nreconnect_backoff_s = 0.05\n")
+    done = run_safecase(
+        "run", "--device", "/dev/nonexistent", "--scans", "3", "--config", str(config),
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "/dev/nonexistent: no scanner after 3 attempts" in done.stderr
+    assert "cannot open serial port '/dev/nonexistent'" in done.stderr
+    cycles = [ln for ln in done.stdout.splitlines() if ln.strip()[:1].isdigit()]
+    assert cycles
+    assert all("STOP" in ln and "scanner link" in ln for ln in cycles), cycles

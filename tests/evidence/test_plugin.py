@@ -280,3 +280,47 @@ def test_html_report_is_self_contained_with_matrix(pytester: pytest.Pytester) ->
         assert f'id="{req_id}"' in html
     junit = (out / "junit.xml").read_text()
     assert 'name="requirement" value="SR-X-4"' in junit
+
+
+@pytest.mark.requirement("SR-EVD-2")
+def test_a_slice_judges_only_the_requirements_it_touches(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_m=PASSING_SUITE)
+    result, out = _run(pytester, "--safecase-enforce", "-k", "test_small")
+    result.assert_outcomes(passed=1)
+    # SR-X-2 has no evidence, but the slice does not touch it: the slice passes.
+    assert result.ret == pytest.ExitCode.OK
+    data = _evidence(out)
+    s = data["summary"]
+    assert s["scope"] == "slice"
+    assert s["judged_requirements"] == ["SR-X-1"]
+    assert s["blocking_requirements"] == []
+    assert s["certification"] == "SLICE PASS"
+    assert data["selection"] == {"expression": "-k 'test_small'", "selected": 1, "deselected": 3}
+    assert "A slice of the suite, not a certification" in (out / "report.html").read_text()
+    junit = (out / "junit.xml").read_text()
+    assert '<property name="certification" value="SLICE PASS"' in junit
+    # The whole suite with the same evidence missing is not certified, and junit counts it.
+    result, out = _run(pytester, "--safecase-enforce")
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    assert _evidence(out)["summary"]["certification"] == "NOT CERTIFIED"
+    junit = (out / "junit.xml").read_text()
+    assert '<property name="certification" value="NOT CERTIFIED"' in junit
+    assert re.search(r'<testsuite name="safecase" tests="5" failures="1"', junit), junit[:400]
+    assert '<testcase classname="requirements" name="SR-X-2"' in junit
+
+
+def test_evidence_under_xdist_is_refused_with_a_clear_message(pytester: pytest.Pytester) -> None:
+    # A stand-in for pytest-xdist's options (the real plugin is not a dependency).
+    pytester.makepyfile(
+        xdist="""
+def pytest_addoption(parser):
+    group = parser.getgroup("xdist")
+    group._addoption("-n", "--numprocesses", dest="numprocesses", default=None)
+    group.addoption("--dist", dest="dist", default="no")
+"""
+    )
+    pytester.syspathinsert()
+    pytester.makepyfile(test_m=PASSING_SUITE)
+    result, _ = _run(pytester, "-p", "xdist", "-n", "2")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*evidence cannot be collected under pytest-xdist*"])

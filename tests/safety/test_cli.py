@@ -44,6 +44,26 @@ def test_a_cross_section_rule_is_checked_at_load(tmp_path: Path) -> None:
     )
 
 
+@pytest.mark.requirement("SR-CFG-1", kind="example")
+def test_unreadable_configurations_get_one_line_not_a_traceback(tmp_path: Path) -> None:
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b"[cluster]\neps_m = 0.15 # \xe9t\xe9\n")
+    nested = tmp_path / "nested.toml"
+    nested.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    cases = {
+        latin: "not UTF-8 text (byte 25: b'\\xe9')",
+        nested: "not valid TOML: nested too deeply",
+        Path("/dev/zero"): "cannot read the configuration file: not a regular file",
+        tmp_path: "cannot read the configuration file: a folder",
+        tmp_path / "missing.toml": "cannot read the configuration file: no such file",
+    }
+    for path, message in cases.items():
+        done = run_safecase("config", "check", str(path), timeout_s=30)
+        assert done.returncode == 2, (path, done.stderr)
+        assert done.stderr.strip() == f"config error: {path}: {message}", done.stderr
+        assert "Traceback" not in done.stderr
+
+
 def test_config_show_round_trips(tmp_path: Path) -> None:
     shown = run_safecase("config", "show")
     assert shown.returncode == 0
@@ -118,3 +138,17 @@ def test_run_certification_writes_a_signed_bundle(tmp_path: Path) -> None:
     assert (tmp_path / "bundle" / "manifest.json").is_file()
     verified = run_safecase("evidence", "verify", str(tmp_path / "bundle"))
     assert verified.returncode == 0, verified.stdout
+
+
+@pytest.mark.requirement("SR-EVD-1", kind="example")
+def test_certify_refuses_a_bad_signing_key_before_running_anything(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    done = run_safecase("certify", "--signing-key", str(tmp_path), "--out", str(out))
+    assert done.returncode == 2
+    assert f"--signing-key {tmp_path}:" in done.stderr
+    assert not out.exists()  # refused before any test ran
+    inside = out / "key.pem"
+    done = run_safecase("certify", "--signing-key", str(inside), "--out", str(out))
+    assert done.returncode == 2
+    assert "inside the output folder" in done.stderr
+    assert not inside.exists()

@@ -155,7 +155,7 @@ def test_certify_reports_the_source_tiers_refuted_with_safe_caps(tmp_path: Path)
             "--no-benchmarks",
             "--out",
             str(tmp_path / "out"),
-            "--key",
+            "--signing-key",
             str(tmp_path / "key.pem"),
             "-k",
             "test_tier_margin_covers",
@@ -169,7 +169,8 @@ def test_certify_reports_the_source_tiers_refuted_with_safe_caps(tmp_path: Path)
     )
     assert done.returncode == 1, done.stdout + done.stderr
     text = done.stdout + done.stderr
-    assert "SR-STOP-1" in done.stdout.split("NOT CERTIFIED")[1]
+    # A slice (-k): only the requirements it touched are judged, and it says so.
+    assert "SR-STOP-1" in done.stdout.split("SLICE FAIL")[1]
     assert "test_tier_margin_covers_stopping_up_to_its_cap[high]" in text
     assert "test_tier_margin_covers_stopping_up_to_its_cap[near_reversal]" in text
     assert "tier high (margin 0.4 m, closing 0 m/s) REFUTED at cap 1 m/s" in text
@@ -178,6 +179,11 @@ def test_certify_reports_the_source_tiers_refuted_with_safe_caps(tmp_path: Path)
     assert "largest safe cap 0.881055392 m/s" in text
     assert "tier medium" not in text
     bundle = json.loads(next((tmp_path / "out").glob("*/evidence.json")).read_text())
+    assert bundle["summary"]["certification"] == "SLICE FAIL"
+    assert bundle["summary"]["judged_requirements"] == ["SR-STOP-1"]
+    junit = next((tmp_path / "out").glob("*/junit.xml")).read_text()
+    assert '<property name="certification" value="SLICE FAIL"' in junit
+    assert '<testcase classname="requirements" name="SR-STOP-1"' in junit
     (stop1,) = [r for r in bundle["requirements"] if r["id"] == "SR-STOP-1"]
     assert stop1["would_be"] == "VIOLATED"
     refuted = [

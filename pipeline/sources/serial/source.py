@@ -4,8 +4,12 @@
 through :class:`~pipeline.sources.serial.transport.Driver`: one frame per received revolution
 (the newest, when several arrived at once) and, while none arrives, one frame without a scan
 every ``period_s``, which the monitors turn into STOP with the driver's state as the reason.
-It ends once the driver has given up (FAILED). :class:`EmulatedSource` serves a scan source
-from a device emulator on a real pty and reads it back through the same driver.
+A device that never answers (a port that cannot be opened, no handshake) is an error naming
+it once the driver has given up (:class:`~pipeline.sources.serial.errors.LinkError` after
+``driver.max_reconnects`` attempts); one that answered and went away is retried, with back-off,
+for as long as the frames are read (each frame without a scan is a STOP). :class:`EmulatedSource`
+serves a scan source from a device emulator on a real pty and reads it back through the same
+driver.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from dataclasses import dataclass, field
 from pipeline.config import DriverSection
 from pipeline.sources.serial.devices import RplidarDevice, ScipDevice
 from pipeline.sources.serial.emulator import Emulator
+from pipeline.sources.serial.errors import LinkError
 from pipeline.sources.serial.transport import Driver
 from pipeline.types import DriverState, Frame, Scan
 
@@ -53,7 +58,11 @@ class SerialSource:
                 health = driver.health(t)
                 yield Frame(scans[-1] if scans else None, t, health=health)
                 if health.state is DriverState.FAILED:
-                    return
+                    raise LinkError(
+                        f"{self.name}: no scanner after {health.reconnects + 1} attempts "
+                        f"({self.config.max_reconnects} reconnects, "
+                        f"{self.config.reconnect_backoff_s} s apart): {health.last_error}"
+                    )
 
 
 @dataclass

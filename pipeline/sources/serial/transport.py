@@ -7,8 +7,12 @@ decodes it and returns the completed revolutions. :meth:`Driver.health` can be c
 time and computes the state from the clock, so a silent device reads ``STALE`` as soon as
 ``silent_timeout_s`` has passed since its last valid frame, whether or not ``poll`` ran since.
 On silence or a port failure the driver closes the port and reopens it after
-``reconnect_backoff_s``, handshaking again; after ``max_reconnects`` consecutive failed
-attempts it gives up (``FAILED``) and :meth:`Driver.scans` raises :class:`LinkError`.
+``reconnect_backoff_s``, handshaking again. A device that has never delivered a valid frame
+is given ``max_reconnects`` further attempts, then the driver gives up (``FAILED``: the port
+cannot be opened or the device does not answer) and :meth:`Driver.scans` raises
+:class:`LinkError`. A device that has delivered frames and then went away is retried for as
+long as the driver runs, the wait doubling from ``reconnect_backoff_s`` up to
+``reconnect_backoff_max_s`` (the runtime meanwhile commands STOP: the link is not fresh).
 """
 
 from __future__ import annotations
@@ -74,6 +78,7 @@ class Driver:
         self._opened = False
         self._connecting = True
         self._failed = False
+        self._ever_connected = False  # a valid frame has arrived at least once
         self._last_error = ""
 
     # -- lifecycle -----------------------------------------------------------------------
@@ -121,9 +126,9 @@ class Driver:
                 link.close()
             self._last_error = f"{type(exc).__name__}: {exc}"
             self._attempts += 1
-            if self._attempts > self.config.max_reconnects:
+            if not self._ever_connected and self._attempts > self.config.max_reconnects:
                 self._failed = True
-            self._retry_at = self.clock() + self.config.reconnect_backoff_s
+            self._retry_at = self.clock() + self.backoff_s()
             return
         self.session = session
         self._watch_s = max(self._last_frame_s, self.clock())
@@ -140,7 +145,25 @@ class Driver:
         self._link = None
         self._stream = None
         self._last_error = reason
-        self._retry_at = now + self.config.reconnect_backoff_s
+        self._retry_at = now + self.backoff_s()
+
+    def backoff_s(self) -> float:
+        """The wait before the next connection attempt [s]: ``reconnect_backoff_s`` while the
+        device has never answered; after a loss it doubles with each failed attempt, up to
+        ``reconnect_backoff_max_s``."""
+        base = self.config.reconnect_backoff_s
+        if not self._ever_connected:
+            return base
+        return float(
+            min(base * 2.0 ** min(self._attempts, 30), self.config.reconnect_backoff_max_s)
+        )
+
+    def retrying_in_s(self, now_s: float) -> float | None:
+        """Seconds from ``now_s`` to the next connection attempt while the link is down (the
+        port is open or was asked to be), else None."""
+        if self._link is not None or self._failed or not self._opened:
+            return None
+        return max(0.0, self._retry_at - now_s)
 
     # -- reading -------------------------------------------------------------------------
     def poll(self, max_wait_s: float | None = None) -> list[Scan]:
@@ -177,6 +200,7 @@ class Driver:
             self._last_frame_s = self._watch_s = now
             self._attempts = 0
             self._connecting = False
+            self._ever_connected = True
         if self.counters.frames_rejected > rejected:
             self._last_reject_s = now
         age = now - self._watch_s
@@ -212,6 +236,10 @@ class Driver:
             connecting=self._connecting,
         )
         c = self.counters
+        error = self._last_error
+        retry = self.retrying_in_s(now)
+        if retry is not None:
+            error = f"{error}; reconnecting in {retry:.1f} s (attempt {self._attempts + 1})"
         return DriverHealth(
             state=state,
             stamp_s=now,
@@ -223,7 +251,7 @@ class Driver:
             scans_incomplete=c.scans_incomplete,
             scans_dropped=c.scans_dropped,
             reconnects=self._reconnects,
-            last_error=self._last_error,
+            last_error=error,
         )
 
 
