@@ -127,6 +127,7 @@ def run_command(
             if log is not None:
                 rule = StampRule(restamp_hz=restamp)
                 source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
+                source.check()  # a log that cannot be replayed leaves no audit log behind
                 target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
                 summary = _run_recorded(cfg, source, target, scans, duration, measured_clock)
                 _report(cfg, summary, source)

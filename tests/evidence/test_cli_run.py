@@ -123,3 +123,18 @@ def test_run_device_that_cannot_be_opened_exits_2_naming_it(tmp_path: Path) -> N
     cycles = [ln for ln in done.stdout.splitlines() if ln.strip()[:1].isdigit()]
     assert cycles
     assert all("STOP" in ln and "scanner link" in ln for ln in cycles), cycles
+
+
+def test_a_log_that_cannot_be_replayed_leaves_no_audit_log(tmp_path: Path) -> None:
+    audit = tmp_path / "none.jsonl"
+    bag = DATA / "leg_tracker" / "negative_2.bag"  # three LaserScan topics: name one
+    done = run_safecase("run", "--log", str(bag), "--audit", str(audit), cwd=tmp_path)
+    assert done.returncode == 2
+    assert "3 LaserScan topics" in done.stderr
+    assert not audit.exists()
+    done = run_safecase(
+        "run", "--log", str(bag), "--scan-topic", "/left_scan", "--scans", "5",
+        "--audit", str(audit), cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert audit.exists()

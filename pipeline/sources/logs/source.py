@@ -91,6 +91,7 @@ class LogSource:
             raise LogFormatError(f"{self.path}: --odom-topic applies to bags only")
         if self.scan_topic is not None and self.kind != "bag":
             raise LogFormatError(f"{self.path}: --scan-topic applies to bags only")
+        self._checked: tuple[FloatArray, FloatArray | None] | None = None
 
     @property
     def name(self) -> str:
@@ -114,11 +115,18 @@ class LogSource:
             return odom[:, 1:4]  # one row per scan, same order
         return None
 
+    def check(self) -> tuple[FloatArray, FloatArray | None]:
+        """Read the log once and apply the stamp rule and the odometry: the stamps to use and
+        the poses at them (None without odometry). Raises :class:`LogFormatError` or
+        :class:`~pipeline.sources.logs.stamps.LogStampError` before any frame is delivered."""
+        if self._checked is None:
+            raw = np.fromiter((s.stamp_s for s in self.scans()), dtype=np.float64)
+            self._checked = (self.stamps.apply(raw, str(self.path)), self._poses(raw))
+        return self._checked
+
     def frames(self) -> Iterator[Frame]:
         """One frame per usable scan: stamps by the rule, poses from the odometry."""
-        raw = np.fromiter((s.stamp_s for s in self.scans()), dtype=np.float64)
-        stamps = self.stamps.apply(raw, str(self.path))
-        poses = self._poses(raw)
+        stamps, poses = self.check()
         self.skipped.setdefault("outside the odometry", 0)
         for i, scan in enumerate(self.scans()):
             pose: Pose | None = None
