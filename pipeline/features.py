@@ -28,7 +28,7 @@ current cycle only; on the simulator's held-out runs they leave two errors the t
 answer: a part-view of a forklift (a fork tip, a mast past an occluder: a third of the forklift
 rows have a box under 0.8 m) looks like a person or a cart, and a forklift that stopped half a
 second ago looks like one parked for a minute. With these five the held-out accuracy of the
-three forklift states rises by 3-5 points (README, classifier section).
+three forklift states rises by 3-5 points (docs/findings/classification.md).
 
 ==========================  ================================================================
 range_m                     distance from the robot to the track's position [m] (far
@@ -145,7 +145,7 @@ tine tips are 1.15 m ahead of its mast and 3.45 m ahead of its rear: 2.5 m joins
 mast and the body's near faces, not to a truck in the next aisle (3.5 m wide)."""
 GROUP_SPEED_MPS = 0.5
 """Largest difference between two partners' velocities [m/s]. Set, like the radius, before the
-dev run that chose the two columns (README, classification, session 15); neither was tuned."""
+dev run that chose the two columns (docs/findings/classification.md); neither was tuned."""
 END_WINDOW = 10
 """History entries (updates, newest last) the end features look back over: 1 s at 10 Hz."""
 END_MIN_ENTRIES = 3

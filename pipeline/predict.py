@@ -76,7 +76,7 @@ def near_reversal_flags(features: TrackFeatures, predict: PredictSection) -> Boo
     ``near_reversal_speed_mps`` and its history was moving within ``near_reversal_memory_s``
     (the simulator's label rule seen from behind: a truck that has just stopped). Applied to
     forklift classes only (:func:`track_modes`); on the held-out rows the second clause gives
-    67 more near-reversal rows the 1.0 m tier (README). SR-PRED-3.
+    67 more near-reversal rows the 1.0 m tier (docs/findings/classification.md). SR-PRED-3.
     """
     v = features.values
     # NaN (never moving in the history) compares False: no flag.

@@ -277,8 +277,8 @@ def test_heldout_accuracy_against_the_published_figures(
     "SR-CLS-2", kind="measurement", code=[*CODE, "pipeline/features.py", "pipeline/shape/ends.py"]
 )
 @pytest.mark.xfail(
-    reason="the published per-class accuracy is not reached (README: Classification and "
-    "prediction); strict: reaching it fails this marker, and SR-CLS-2 can then be claimed",
+    reason="the published per-class accuracy is not reached (docs/findings/classification.md); "
+    "strict: reaching it fails this marker, and SR-CLS-2 can then be claimed",
     strict=True,
 )
 def test_heldout_accuracy_reaches_the_published_figures(

@@ -303,7 +303,7 @@ def test_raycast_1080_beams_50_edges(benchmark) -> None:  # type: ignore[no-unty
 @pytest.mark.requirement("SR-SIM-4", kind="measurement", code=LIDAR_CODE)
 def test_full_scene_scan_timings(benchmark) -> None:  # type: ignore[no-untyped-def]
     """Whole scans of the default scenario (~400 static edges and the objects'): snapshot and
-    time-skewed, for the README's table; not part of the 1 ms claim."""
+    time-skewed, for docs/findings/simulator.md; not part of the 1 ms claim."""
     cfg = default_config()
     sim = make_simulation(cfg, "reversing_forklift_aisle", 0, duration_s=1.0)
     sim.run(ConstantSpeed(1.0))

@@ -1,6 +1,6 @@
 """One runtime cycle: scan -> ... -> command, timed per stage and audited (SR-RUN-*, SR-AUD-*).
 
-The whole chain of DESIGN.md runs once per scan: the perception chain
+The whole chain (docs/architecture.md) runs once per scan: the perception chain
 (:class:`pipeline.perception.Perception`: filter, clusters, shapes, tracks in the tracking frame
 placed by the robot's odometry pose at the scan's stamp, features, classes, fusion with the
 freshness guard of :mod:`safety.model.freshness`, predictions), then the safety side:

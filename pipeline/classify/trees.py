@@ -22,8 +22,8 @@ features of all rows. The AND then takes one feature at a time (a gather of the 
 rows for that feature into a small buffer, and an AND into the masks): gathering every
 feature's rows at once would write and read back rows x features x trees x 8 bytes (4.4 MB for
 20 rows, 23 features and 1208 trees) per call: measured about 10 % slower back to back and
-15-25 % slower when other work runs between calls (README, fast inference). Deeper trees fall
-back to walking all trees level by level (:class:`TreeEnsemble` picks the path on load).
+15-25 % slower when other work runs between calls (docs/findings/classification.md). Deeper trees
+fall back to walking all trees level by level (:class:`TreeEnsemble` picks the path on load).
 """
 
 from __future__ import annotations

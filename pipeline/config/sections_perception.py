@@ -13,7 +13,7 @@ class DriverSection(Section):
     """Serial LiDAR transport (requirements SR-DRV-*).
 
     ``rplidar_mode`` "express" asks for express capsules, whose XOR checksum covers every
-    distance; "standard" nodes carry three check bits only (see README "Serial drivers").
+    distance; "standard" nodes carry three check bits only (docs/findings/drivers.md).
     ``incomplete_policy``: a revolution that lost beams to a rejected frame is emitted with
     ``complete=False`` ("mark") or withheld ("drop"); its rejected beams are never emitted.
     ``max_step_deg``: largest plausible angle step between two RPLIDAR nodes. A device that

@@ -11,7 +11,7 @@ Why the classifier wants this: a truck seen through a gap between racks, or past
 object, shows only the part between two occluders. Its clipped ends stay at the occluders'
 edges while it moves, so its centroid barely moves; a free end moves with the object. The
 tracker keeps each track's ends in its history and :mod:`pipeline.features` turns them into
-end speeds (README, classification).
+end speeds (docs/findings/classification.md).
 
 Only the adjacent beam counts (its ``beam_index`` differs by one, modulo the scan's beam
 count), so a dropped beam (no return, out of range) between the end and the next point leaves

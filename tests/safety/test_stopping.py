@@ -213,6 +213,6 @@ def test_the_freshness_monitor_enforces_the_proved_latency() -> None:
         "(0.18): the monitor would pass data older than the stopping proof assumes"
     ]
     # The source's 80 ms is valid only with a monitor as strict, and then a 10 Hz scan (first
-    # beam 0.1 s old when the revolution completes) is always stale: the README finding.
+    # beam 0.1 s old when the revolution completes) is always stale (docs/findings/stopping.md).
     source = load_config(SOURCE)
     assert source.monitors.scan_max_age_s == source.stopping.perception_latency_s == 0.08
