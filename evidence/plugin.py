@@ -29,6 +29,7 @@ from hypothesis.statistics import collector
 
 from evidence.catalogue import EVIDENCE_KINDS, Catalogue, load_catalogue
 from evidence.environment import collect_environment, git_state
+from evidence.manifest import check_key_outside
 from evidence.model import Bundle, EvidenceItem, Outcome, compute_verdicts
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
@@ -471,12 +472,15 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         state.bundle = bundle
         if out:
             key_option = session.config.getoption("safecase_key")
+            key_path = Path(key_option) if key_option else None
+            state.bundle_dir = Path(out)
             try:
-                key, _, _ = load_or_create_key(Path(key_option) if key_option else None)
+                # A key inside the bundle would be shipped with it (SR-EVD-1).
+                check_key_outside(state.bundle_dir, key_path)
+                key, _, _ = load_or_create_key(key_path)
+                write_bundle(state.bundle_dir, bundle, key)
             except SafecaseError as exc:
                 raise pytest.UsageError(f"safecase: {exc}") from None
-            state.bundle_dir = Path(out)
-            write_bundle(state.bundle_dir, bundle, key)
         if enforce and bundle.summary["blocking_requirements"] and session.exitstatus == 0:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED
     finally:

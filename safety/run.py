@@ -162,30 +162,46 @@ def run_audited(
 ) -> Iterator[CycleOutput]:
     """:func:`run` with one audit record per cycle in ``audit_path`` (none when None).
 
-    A live source's log is written off the cycle's thread (fsync stalls of 15-100 ms here).
+    With ``audit.sign_head`` the head anchor is signed with the key of
+    :func:`safety.audit.log.signing_key_for` (SR-AUD-1). That key is loaded here, when this
+    function is called: a key that cannot be used raises
+    :class:`~safety.audit.keys.SigningKeyError` naming its path before any cycle runs and
+    before the log is created. A live source's log is written off the cycle's thread (fsync
+    stalls of 15-100 ms here).
     """
-    rt = runtime if runtime is not None else Runtime(config, params=params)
-    with contextlib.ExitStack() as stack:
-        if audit_path is not None:
-            writer = stack.enter_context(
-                AuditWriter(
-                    audit_path, config, model_hash=rt.classifier.model_sha256, params=rt.params
+    from safety.audit.log import signing_key_for
+
+    key = signing_key_for(config.audit) if audit_path is not None else None
+
+    def cycles() -> Iterator[CycleOutput]:
+        rt = runtime if runtime is not None else Runtime(config, params=params)
+        with contextlib.ExitStack() as stack:
+            if audit_path is not None:
+                writer = stack.enter_context(
+                    AuditWriter(
+                        audit_path,
+                        config,
+                        model_hash=rt.classifier.model_sha256,
+                        params=rt.params,
+                        signing_key=key,
+                    )
                 )
+                if source.live:
+                    background = BackgroundAuditWriter(writer)
+                    stack.callback(background.close)
+                    rt.writer = background
+                else:
+                    rt.writer = writer
+            yield from run(
+                config,
+                source,
+                rt,
+                max_scans=max_scans,
+                duration_s=duration_s,
+                measured_clock=measured_clock,
             )
-            if source.live:
-                background = BackgroundAuditWriter(writer)
-                stack.callback(background.close)
-                rt.writer = background
-            else:
-                rt.writer = writer
-        yield from run(
-            config,
-            source,
-            rt,
-            max_scans=max_scans,
-            duration_s=duration_s,
-            measured_clock=measured_clock,
-        )
+
+    return cycles()
 
 
 def run_simulation(

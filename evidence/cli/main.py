@@ -23,7 +23,7 @@ from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, ou
 from evidence.cli.run import run_command
 from evidence.cli.sim import app as sim_app
 from evidence.cli.train import train_command
-from evidence.manifest import verify_bundle
+from evidence.manifest import check_key_outside, verify_bundle
 from pipeline.config import config_hash, to_toml
 from pipeline.errors import SafecaseError
 from safety.audit.keys import default_key_path, load_or_create_key, load_public_key
@@ -168,12 +168,7 @@ def _check_signing_key(key: Path | None, out_dir: Path) -> None:
     """Refuse, before any test runs, a key that cannot sign or that would ship in the bundle."""
     path = key if key is not None else default_key_path()
     try:
-        inside = path.resolve().is_relative_to(out_dir.resolve())
-    except OSError:
-        inside = False
-    if inside:
-        fail(f"--signing-key {path}: inside the output folder {out_dir}; keep the key outside")
-    try:
+        check_key_outside(out_dir, key)
         load_or_create_key(key)
     except (SafecaseError, OSError) as exc:
         fail(f"--signing-key {path}: {exc}")
@@ -213,7 +208,16 @@ def _print_family_lines(bundle: Any) -> None:
         out.print(f"{family:5s} {title:32s} {verdict}  ({detail})", highlight=False)
 
 
-@evidence_app.command("verify")
+@evidence_app.command(
+    "verify",
+    epilog="Example: safecase evidence verify out/certification/latest --public-key signing.pub"
+    "\n\nExit codes: 0 every file matches the manifest and the signature holds (without "
+    "--public-key: made by the key the bundle names itself, printed with a NOT-trusted "
+    "warning); 1 a file changed, added or removed, a link, FIFO or device in the bundle, a "
+    "manifest that lists a file twice or a path outside the bundle, a bad signature, or (with "
+    "--public-key) another signer; 2 bad options or a --public-key that cannot be read (missing, "
+    "not a regular file, not an Ed25519 key).",
+)
 def evidence_verify(
     bundle: Annotated[Path, typer.Argument(help="The bundle folder (holding manifest.json).")],
     public_key: Annotated[
@@ -221,21 +225,46 @@ def evidence_verify(
         typer.Option(help="Trusted public key (PEM or base64 raw); checks who signed."),
     ] = None,
 ) -> None:
-    """Check every file hash and the Ed25519 signature of an evidence bundle."""
+    """Check every file hash and the Ed25519 signature of an evidence bundle (SR-EVD-1).
+
+    Nothing in the bundle is followed or read outside it: a symbolic link, a FIFO or device, an
+    added directory, a file listed twice or outside the bundle is a failure. Without
+    --public-key the signature is checked against the key the bundle carries, which anyone
+    who changed the bundle can replace: the signer's fingerprint is printed, marked NOT
+    trusted.
+    """
+    from rich.markup import escape  # bundle paths and problems are not markup
+
     trusted = None
     if public_key is not None:
         try:
             trusted = load_public_key(public_key)
         except (OSError, SafecaseError) as exc:
-            err.print(f"[bold red]error:[/] --public-key {public_key}: {exc}")
+            err.print(f"[bold red]error:[/] --public-key: {escape(str(exc))}", highlight=False)
             raise typer.Exit(2) from None
     result = verify_bundle(bundle, trusted)
+    if result.ok and result.trusted_key:
+        out.print(
+            f"OK: {result.checked_files} files match the manifest, signed by the trusted key "
+            f"{result.fingerprint}",
+            highlight=False,
+        )
+        return
     if result.ok:
-        who = "the trusted key" if result.trusted_key else f"key {result.fingerprint}"
-        out.print(f"OK: {result.checked_files} files match the manifest, signed by {who}")
+        out.print(
+            f"OK: {result.checked_files} files match the manifest and its signature",
+            highlight=False,
+        )
+        out.print(
+            f"[bold yellow]WARNING:[/] signed by key {result.fingerprint}, which the bundle "
+            "names itself: NOT a trusted key. Whoever changes a bundle can sign it again with "
+            "a key of their own; pass --public-key with the signer's public key to check who "
+            "signed.",
+            highlight=False,
+        )
         return
     for problem in result.problems:
-        out.print(f"[bold red]FAIL[/] {problem}", highlight=False)
+        out.print(f"[bold red]FAIL[/] {escape(problem)}", highlight=False)
     raise typer.Exit(1)
 
 

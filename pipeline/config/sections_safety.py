@@ -160,15 +160,22 @@ class MonitorSection(Section):
 class AuditSection(Section):
     """Hash-chained audit log (SR-AUD-*): one JSON line per cycle, see :mod:`safety.audit.log`.
 
-    The log is fsynced, and its signed head anchor rewritten, every ``fsync_every_records``
-    records and at close. ``signing_key`` is the Ed25519 key (PEM) that signs the anchor; empty
-    with ``sign_head`` true: the evidence signing key (:mod:`evidence.manifest`).
+    The log is fsynced, and its head anchor rewritten, every ``fsync_every_records`` records and
+    at close. ``sign_head`` true: ``safecase run`` signs the anchor with Ed25519. The key is
+    ``signing_key``, a PEM file that must exist (never created: a mistyped path is an error
+    naming it when the run starts, before any cycle); empty, the default key that also signs
+    evidence bundles (``$SAFECASE_SIGNING_KEY`` or ``~/.config/safecase/signing-key.pem``),
+    created on first use. ``signing_key`` is read only when ``sign_head`` is true.
     """
 
     log_dir: str = "out/audit"
     fsync_every_records: int = Field(10, ge=1, le=1_000_000)
     sign_head: bool = False
-    signing_key: str = Field("", description="Ed25519 PEM key; empty: the evidence key")
+    signing_key: str = Field(
+        "",
+        description="Ed25519 PEM key that signs the head when sign_head is true; it must "
+        "exist. Empty: the default evidence key, created on first use",
+    )
 
 
 class RuntimeSection(Section):

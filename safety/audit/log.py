@@ -13,15 +13,16 @@ command, per-stage timings; :class:`CycleRecord`), and a ``close`` record when t
 down cleanly.
 
 The writer fsyncs every ``audit.fsync_every_records`` records and then rewrites the *head
-anchor* ``LOG.head`` (atomically): the last durable record's seq and hash, optionally signed
-with Ed25519 (the evidence signing key of :mod:`evidence.manifest`). The chain makes any
-change, insertion, deletion or reordering visible at the first affected line; the anchor makes
-truncation of durable records visible; the signature makes a rewritten chain (with a rewritten
-anchor) visible. What no log can show: records written after the last anchor and lost with
-the tail, which is exactly what a crash loses too. :func:`verify_log` therefore reports three
-outcomes: ``intact`` (closed cleanly, nothing wrong), ``incomplete`` (the writer stopped: no
-close record or a partial last line, consistent with a crash) and ``tampered`` (with the first
-bad line and the reason).
+anchor* ``LOG.head`` (atomically): one line, the canonical JSON of exactly the keys
+:data:`ANCHOR_KEYS` (the last durable record's seq and hash, the header's hash, whether the log
+is closed, and the public key and Ed25519 signature, both null when unsigned). With
+``audit.sign_head`` the anchor is signed (:func:`signing_key_for`). The chain makes any change,
+insertion, deletion or reordering visible at the first affected line; the anchor makes
+truncation of durable records visible; the signature, checked against a trusted key, makes a
+rewritten chain (with a rewritten anchor) visible. What no log can show: records written after
+the last anchor and lost with the tail, which is exactly what a crash loses too.
+:func:`safety.audit.verify.verify_log` reports the outcomes (``intact``, ``incomplete``,
+``unanchored``, ``empty``, ``tampered``) with the first bad line and the reason.
 """
 
 from __future__ import annotations
@@ -44,21 +45,27 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from pipeline.config import AuditSection, SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps, jsonable
-from safety.audit.keys import load_or_create_key, raw_public_key
+from safety.audit.files import FileReadError, open_regular
+from safety.audit.keys import load_or_create_key, load_private_key, raw_public_key
 from safety.model.decision import Decision, GovernorInputs, command_to_dict
 from safety.model.monitors import Observation
 from safety.model.stopping import StoppingParams
 
 __all__ = [
+    "ANCHOR_KEYS",
     "GENESIS",
+    "MAX_RECORD_BYTES",
     "SCHEMA",
     "AuditError",
     "AuditWriter",
     "BackgroundAuditWriter",
     "CycleRecord",
+    "RecordTooLongError",
+    "anchor_bytes",
     "anchor_message",
     "anchor_path",
     "canonical_json",
+    "iter_lines",
     "record_hash",
     "signing_key_for",
     "summarize",
@@ -66,10 +73,26 @@ __all__ = [
 
 SCHEMA = "safecase-audit/1"
 GENESIS = "0" * 64
+# The keys of a head anchor, no more, no fewer.
+ANCHOR_KEYS = frozenset(
+    ("schema", "header_hash", "seq", "hash", "closed", "public_key", "signature")
+)
+# The longest record a reader accepts [bytes]. A cycle record is a few kB; 10 000 obstacles
+# (geometry.max_obstacles at its bound) make about 1 MB.
+MAX_RECORD_BYTES = 16 * 1024 * 1024
 
 
 class AuditError(SafecaseError):
     """An audit log that cannot be written or read (exists already, unreadable, not a log)."""
+
+
+class RecordTooLongError(AuditError):
+    """A line longer than :data:`MAX_RECORD_BYTES`: no record the writer writes. ``line`` is
+    its 1-based number."""
+
+    def __init__(self, path: Path, line: int) -> None:
+        super().__init__(f"audit log {path}: line {line} is longer than {MAX_RECORD_BYTES} bytes")
+        self.line = line
 
 
 def canonical_json(value: Any) -> bytes:
@@ -92,15 +115,30 @@ def anchor_message(header_hash: str, seq: int, head: str, closed: bool) -> bytes
     return f"{SCHEMA}|{header_hash}|{seq}|{head}|{'closed' if closed else 'open'}".encode()
 
 
+def anchor_bytes(anchor: Mapping[str, Any]) -> bytes:
+    """The one byte form of a head anchor file: its canonical JSON and a newline."""
+    return canonical_json(anchor) + b"\n"
+
+
 def _raw_public(key: Ed25519PrivateKey) -> str:
     return base64.b64encode(raw_public_key(key.public_key())).decode("ascii")
 
 
 def signing_key_for(section: AuditSection) -> Ed25519PrivateKey | None:
-    """The key that signs the head (``audit.sign_head``), loaded like the evidence key."""
+    """The key that signs the head anchor (SR-AUD-1): None unless ``audit.sign_head``.
+
+    ``audit.signing_key`` set: that Ed25519 PEM file, which must exist (it is never created,
+    so a mistyped path cannot silently sign with a new key nobody trusts). Empty: the default
+    key of :func:`safety.audit.keys.default_key_path` (``$SAFECASE_SIGNING_KEY`` or
+    ``~/.config/safecase/signing-key.pem``), the key that signs evidence bundles, created on
+    first use. Raises :class:`~safety.audit.keys.SigningKeyError` naming the path when the key
+    cannot be used (missing, unreadable, not a regular file, not an Ed25519 PEM).
+    """
     if not section.sign_head:
         return None
-    key, _, _ = load_or_create_key(Path(section.signing_key) if section.signing_key else None)
+    if section.signing_key:
+        return load_private_key(Path(section.signing_key).expanduser())
+    key, _, _ = load_or_create_key(None)
     return key
 
 
@@ -276,7 +314,7 @@ class AuditWriter:
             message = anchor_message(self.header_hash, self.seq, self.head, closed)
             anchor["signature"] = base64.b64encode(self.key.sign(message)).decode("ascii")
         tmp = self.anchor.with_name(self.anchor.name + ".tmp")
-        tmp.write_bytes(canonical_json(anchor) + b"\n")
+        tmp.write_bytes(anchor_bytes(anchor))
         with tmp.open("rb") as handle:
             os.fsync(handle.fileno())
         os.replace(tmp, self.anchor)
@@ -358,12 +396,21 @@ class BackgroundAuditWriter:
 
 
 def iter_lines(path: Path) -> Iterator[tuple[int, bytes, bool]]:
-    """``(line number, bytes without newline, terminated)`` for every line of ``path``."""
+    """``(line number, bytes without newline, terminated)`` for every line of ``path``.
+
+    Raises :class:`AuditError` when ``path`` is not a readable regular file (a FIFO or a device
+    would block or never end) and :class:`RecordTooLongError` at a line longer than
+    :data:`MAX_RECORD_BYTES`.
+    """
     try:
-        handle = path.open("rb")
-    except OSError as exc:
-        raise AuditError(f"audit log {path}: cannot read ({exc.strerror})") from None
-    with handle:
-        for number, raw in enumerate(handle, start=1):
+        fd = open_regular(path)
+    except FileReadError as exc:
+        raise AuditError(f"audit log {exc}") from None
+    with os.fdopen(fd, "rb") as handle:
+        number = 0
+        while raw := handle.readline(MAX_RECORD_BYTES + 1):
+            number += 1
             terminated = raw.endswith(b"\n")
+            if len(raw) > MAX_RECORD_BYTES and not terminated:
+                raise RecordTooLongError(path, number)
             yield number, raw[:-1] if terminated else raw, terminated

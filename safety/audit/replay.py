@@ -5,12 +5,13 @@ governor ran with; each cycle record holds the monitors' observation, the govern
 and the STOP verdicts of stages that failed. :func:`replay` rebuilds the governor, runs
 :func:`safety.model.decision.decide` on every recorded cycle and compares the governor's command,
 every verdict and the final command with what was recorded, exactly (floats bit for bit).
-A log is verified first; a tampered log is not replayed (it would prove nothing).
+A log is verified first; a tampered or empty log is not replayed (it would prove nothing). A
+record whose recorded values cannot be decoded or decided on (a re-chained, unsigned log can
+hold anything of the right shape) is reported as a mismatch of its line, never raised.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,9 +19,9 @@ from typing import Any
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from pipeline.config import SafecaseConfig, config_hash, validate_config
-from pipeline.errors import ConfigError
-from safety.audit.log import AuditError, iter_lines
-from safety.audit.verify import AuditStatus, AuditVerification, verify_log
+from pipeline.errors import ConfigError, SafecaseError
+from safety.audit.log import AuditError
+from safety.audit.verify import AuditStatus, AuditVerification, iter_records, verify_log
 from safety.model.decision import GovernorInputs, command_to_dict, decide
 from safety.model.governor import Governor
 from safety.model.monitors import DEFAULT_MONITORS, MonitorVerdict, Observation
@@ -59,10 +60,13 @@ class ReplayReport:
 
 
 def governor_for(header: dict[str, Any]) -> tuple[SafecaseConfig, Governor]:
-    """The configuration and governor a log's header describes (config hash checked)."""
+    """The configuration and governor a log's header describes (config hash checked).
+
+    Raises :class:`~safety.audit.log.AuditError` when the header's configuration does not load
+    or does not hash to the recorded hash."""
     try:
         config = validate_config(header["config"], origin="audit header")
-    except ConfigError as exc:
+    except (ConfigError, RecursionError) as exc:
         raise AuditError(f"audit header: configuration does not load: {exc}") from None
     if config_hash(config) != header["config_hash"]:
         raise AuditError(
@@ -70,12 +74,15 @@ def governor_for(header: dict[str, Any]) -> tuple[SafecaseConfig, Governor]:
             f"records {str(header['config_hash'])[:16]}"
         )
     latency = header["latency"]
-    params = StoppingParams.from_config(
-        config,
-        perception_latency_s=float(latency["perception_latency_s"]),
-        latency_source=str(latency["latency_source"]),
-    )
-    return config, Governor.from_config(config, params)
+    try:
+        params = StoppingParams.from_config(
+            config,
+            perception_latency_s=float(latency["perception_latency_s"]),
+            latency_source=str(latency["latency_source"]),
+        )
+        return config, Governor.from_config(config, params)
+    except (ArithmeticError, SafecaseError, ValueError) as exc:
+        raise AuditError(f"audit header: latency bound unusable: {exc}") from None
 
 
 def _compare(
@@ -104,13 +111,10 @@ def replay(
         report.refused = f"not replayed: the log is tampered ({verification.describe()})"
         return report
     if verification.header is None:
-        report.refused = "not replayed: the log has no header"
+        report.refused = "not replayed: the log has no header (not an audit log)"
         return report
     config, governor = governor_for(verification.header)
-    for number, raw, _ in iter_lines(Path(path)):
-        if number > verification.n_records:
-            break
-        record = json.loads(raw)
+    for number, record in iter_records(path, verification.n_records):
         if record["kind"] != "cycle":
             continue
         report.n_cycles += 1
@@ -126,12 +130,19 @@ def replay(
                 for v in record["verdicts"]
                 if v["monitor"] not in _MONITOR_NAMES
             ]
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, ArithmeticError) as exc:
             report.mismatches.append(
-                ReplayMismatch(number, record["seq"], "inputs", "undecodable", repr(exc))
+                ReplayMismatch(number, record["seq"], "inputs", "undecodable", repr(exc)[:200])
             )
             continue
-        decision = decide(governor, inputs, observation, config.monitors, stage)
+        try:
+            decision = decide(governor, inputs, observation, config.monitors, stage)
+        except (TypeError, ValueError, ArithmeticError, SafecaseError) as exc:
+            # Recorded values of the right shape that no runtime cycle can have produced.
+            report.mismatches.append(
+                ReplayMismatch(number, record["seq"], "decision", "recorded", repr(exc)[:200])
+            )
+            continue
         gov = decision.governor_command
         _compare(
             report,

@@ -160,7 +160,7 @@ def test_signed_head_catches_a_rewritten_chain(tmp_path: Path) -> None:
         log.write_bytes(b"".join(line + b"\n" for line in lines))
         anchor = json.loads(anchor_path(log).read_bytes())
         anchor.update(hash=prev, header_hash=json.loads(lines[0])["hash"])
-        anchor_path(log).write_bytes(canonical_json(anchor))
+        anchor_path(log).write_bytes(canonical_json(anchor) + b"\n")
         result = verify_log(log, trusted_key=trusted)
         if signed:
             assert result.status is AuditStatus.TAMPERED
@@ -177,13 +177,21 @@ def test_anchor_removed_or_signed_by_someone_else(tmp_path: Path) -> None:
     assert "not by the trusted key" in verify_log(log, trusted_key=other).problem
     anchor = json.loads(anchor_path(log).read_bytes())
     stripped = {**anchor, "signature": None}
-    anchor_path(log).write_bytes(canonical_json(stripped))
+    anchor_path(log).write_bytes(canonical_json(stripped) + b"\n")
     assert "not signed" in verify_log(log).problem
+    stripped["public_key"] = None
+    anchor_path(log).write_bytes(canonical_json(stripped) + b"\n")
+    assert "the header names a signing key but the anchor is not signed" in (
+        verify_log(log).problem
+    )
     anchor["public_key"] = base64.b64encode(other.public_bytes_raw()).decode()
-    anchor_path(log).write_bytes(canonical_json(anchor))
+    anchor_path(log).write_bytes(canonical_json(anchor) + b"\n")
     assert "other than the header's" in verify_log(log).problem
     anchor_path(log).unlink()
-    assert verify_log(log).status is AuditStatus.TAMPERED
+    # Without the anchor an intact chain is its own outcome: not tampered, not intact.
+    unanchored = verify_log(log)
+    assert unanchored.status is AuditStatus.UNANCHORED, unanchored.describe()
+    assert unanchored.signature == "not checked (no anchor)"
     copied = verify_log(log, require_anchor=False)
     assert copied.ok
     assert copied.notes

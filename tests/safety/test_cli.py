@@ -84,6 +84,8 @@ def test_evidence_verify_names_changes_and_wrong_signatures(tmp_path: Path) -> N
     ok = run_safecase("evidence", "verify", str(bundle))
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert ok.stdout.startswith("OK: 2 files match")
+    # No trusted key given: who signed is printed, and said to be untrusted.
+    assert "NOT a trusted key" in ok.stdout
 
     (bundle / "report.html").write_text("<html>changed</html>\n")
     bad = run_safecase("evidence", "verify", str(bundle))
@@ -150,5 +152,5 @@ def test_certify_refuses_a_bad_signing_key_before_running_anything(tmp_path: Pat
     inside = out / "key.pem"
     done = run_safecase("certify", "--signing-key", str(inside), "--out", str(out))
     assert done.returncode == 2
-    assert "inside the output folder" in done.stderr
+    assert "keep the key outside it" in done.stderr
     assert not inside.exists()
