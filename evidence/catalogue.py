@@ -18,11 +18,13 @@ from pipeline.errors import RequirementsError
 
 EvidenceKind = Literal["proof", "property", "cross-check", "measurement", "campaign", "example"]
 EVIDENCE_KINDS: tuple[str, ...] = get_args(EvidenceKind)
-Status = Literal["planned", "claimed"]
+Status = Literal["planned", "claimed", "unmet"]
+STATUSES: tuple[str, ...] = get_args(Status)
 _ID = re.compile(r"^SR-[A-Z]+-[0-9]+$")
 
 __all__ = [
     "EVIDENCE_KINDS",
+    "STATUSES",
     "Catalogue",
     "EvidenceKind",
     "Requirement",
@@ -101,8 +103,10 @@ def _parse_requirement(entry: dict[str, Any], where: str, families: dict[str, st
     if req_id.split("-")[1] != family:
         raise RequirementsError(f"{where}: id {req_id!r} must carry its family {family!r}")
     status = _need(entry, "status", str, where)
-    if status not in ("planned", "claimed"):
-        raise RequirementsError(f"{where}: status {status!r} must be 'planned' or 'claimed'")
+    if status not in STATUSES:
+        raise RequirementsError(
+            f"{where}: status {status!r} must be one of {', '.join(map(repr, STATUSES))}"
+        )
     kinds = tuple(_need(entry, "evidence_kinds", list, where))
     for kind in kinds:
         if kind not in EVIDENCE_KINDS:

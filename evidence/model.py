@@ -12,6 +12,8 @@ Verdict rules, per requirement:
   many linked items of that kind passed;
 * NOT EVIDENCED: otherwise (no evidence, only skipped evidence, or too few of some kind);
 * PLANNED: the requirement's status is ``planned``; its would-be verdict is kept alongside.
+* NOT MET: the status is ``unmet``: built and measured, its target not reached; shown as
+  failing beside its would-be verdict, never blocking certification.
 """
 
 from __future__ import annotations
@@ -22,12 +24,13 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
 from evidence.catalogue import Catalogue, Requirement
+from evidence.safety_case import SafetyCase
 
 SCHEMA_ID = "safecase-evidence"
-SCHEMA_VERSION = "1.1"
+SCHEMA_VERSION = "1.2"
 
 Outcome = Literal["passed", "failed", "skipped", "error"]
-RequirementVerdict = Literal["SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED"]
+RequirementVerdict = Literal["SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED", "NOT MET"]
 SmtVerdict = Literal["PROVED", "REFUTED", "UNKNOWN"]
 
 __all__ = [
@@ -117,6 +120,14 @@ def _verdict_for(
     return verdict, dict(passing), missing, failures
 
 
+def _shown(status: str, would_be: RequirementVerdict) -> RequirementVerdict:
+    """The verdict a requirement shows: its own when claimed; PLANNED when not built yet; NOT
+    MET when built but its target not reached (shown as failing, never blocking)."""
+    if status == "claimed":
+        return would_be
+    return "NOT MET" if status == "unmet" else "PLANNED"
+
+
 def compute_verdicts(catalogue: Catalogue, items: list[EvidenceItem]) -> list[RequirementResult]:
     """One :class:`RequirementResult` per catalogue entry, in catalogue order (SR-EVD-2)."""
     results = []
@@ -131,7 +142,7 @@ def compute_verdicts(catalogue: Catalogue, items: list[EvidenceItem]) -> list[Re
                 claim=req.claim,
                 source=req.source,
                 code=sorted(set(req.code).union(*(item.code for item in linked))),
-                verdict=would_be if req.claimed else "PLANNED",
+                verdict=_shown(req.status, would_be),
                 would_be=would_be,
                 minimum=dict(req.minimum),
                 passing=passing,
@@ -159,6 +170,7 @@ class Bundle:
     schema: str = SCHEMA_ID
     schema_version: str = SCHEMA_VERSION
     selection: dict[str, Any] | None = None
+    safety_case: SafetyCase | None = None
 
     @property
     def is_slice(self) -> bool:
@@ -177,7 +189,8 @@ class Bundle:
         return {
             "tests": {k: outcomes.get(k, 0) for k in ("passed", "failed", "error", "skipped")},
             "requirements": {
-                k: verdicts.get(k, 0) for k in ("SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED")
+                k: verdicts.get(k, 0)
+                for k in ("SATISFIED", "VIOLATED", "NOT EVIDENCED", "PLANNED", "NOT MET")
             },
             "scope": "slice" if self.is_slice else "suite",
             "judged_requirements": [r.id for r in judged],
@@ -213,6 +226,7 @@ class Bundle:
             "tests": [asdict(t) for t in self.tests],
             "session_exit_status": self.session_exit_status,
             "selection": self.selection,
+            "safety_case": None if self.safety_case is None else asdict(self.safety_case),
         }
 
     def to_json(self) -> str:

@@ -34,6 +34,7 @@ from evidence.model import Bundle, EvidenceItem, Outcome, compute_verdicts
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
 from evidence.report import write_bundle
+from evidence.safety_case import SafetyCase, load_safety_case
 from pipeline.classify.model import model_provenance
 from pipeline.config import SafecaseConfig, config_hash, load_config
 from pipeline.errors import ConfigError, RequirementsError, SafecaseError
@@ -49,6 +50,7 @@ class _State:
     catalogue: Catalogue
     config: SafecaseConfig
     config_path: str | None
+    safety_case: SafetyCase | None = None
     started: float = field(default_factory=time.time)
     items: dict[str, EvidenceItem] = field(default_factory=dict)
     stats: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -85,6 +87,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         help="requirements catalogue (default: the packaged safety/requirements.toml)",
     )
     group.addoption(
+        "--safecase-hazards",
+        metavar="FILE",
+        default=None,
+        help="hazard log and assumptions (default: the packaged safety/hazards.toml, used with "
+        "the packaged catalogue only)",
+    )
+    group.addoption(
         "--safecase-key",
         metavar="FILE",
         default=None,
@@ -108,6 +117,15 @@ def pytest_configure(config: pytest.Config) -> None:
         catalogue = load_catalogue(config.getoption("safecase_requirements"))
     except RequirementsError as exc:
         raise pytest.UsageError(f"safecase: {exc}") from None
+    hazards = config.getoption("safecase_hazards")
+    try:
+        case = (
+            load_safety_case(hazards)
+            if hazards or not config.getoption("safecase_requirements")
+            else None
+        )
+    except RequirementsError as exc:
+        raise pytest.UsageError(f"safecase: {exc}") from None
     config_path = config.getoption("safecase_config")
     try:
         safecase_config = load_config(config_path)
@@ -129,7 +147,7 @@ def pytest_configure(config: pytest.Config) -> None:
             "safecase: evidence cannot be collected under pytest-xdist (-n/--dist): run "
             "without -n, or without --safecase-out/--safecase-enforce"
         )
-    config.stash[STATE] = _State(catalogue, safecase_config, config_path)
+    config.stash[STATE] = _State(catalogue, safecase_config, config_path, case)
 
 
 def _distributed(config: pytest.Config) -> bool:
@@ -455,6 +473,7 @@ def build_bundle(session: pytest.Session, exitstatus: int) -> Bundle:
         tests=items,
         session_exit_status=int(exitstatus),
         selection=_selection(session, state),
+        safety_case=state.safety_case,
     )
 
 

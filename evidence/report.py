@@ -18,6 +18,7 @@ from typing import Any
 import jinja2
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
+from evidence.case_view import case_view, expected_refutations, render_summary
 from evidence.manifest import write_manifest
 from evidence.model import Bundle, EvidenceItem
 
@@ -71,6 +72,8 @@ def render_html(bundle: Bundle) -> str:
         tests_by_id=tests,
         unlinked=[tests[t.nodeid] for t in bundle.tests if not t.requirement_ids],
         planned_count=sum(1 for r in bundle.requirements if r.status == "planned"),
+        view=case_view(bundle),
+        refutations=expected_refutations(bundle),
     )
 
 
@@ -103,6 +106,18 @@ def render_markdown(bundle: Bundle) -> str:
         ]
     if s["blocking_requirements"]:
         lines += [f"**Blocking:** {', '.join(s['blocking_requirements'])}", ""]
+    view = case_view(bundle)
+    if view is not None:
+        lines += [f"## Hazards (argument status: {view.status})", ""]
+        lines += ["| hazard | severity | status | mitigated by |", "|---|---|---|---|"]
+        for h in view.hazards:
+            reqs = ", ".join(f"{r} {v}" for r, v in h["requirements"])
+            lines.append(f"| {h['id']} {h['title']} | {h['severity']} | {h['status']} | {reqs} |")
+        lines += ["", "| assumption | watched |", "|---|---|"]
+        for a in view.assumptions:
+            watched = f"monitor `{a['monitor']}`" if a["watch"] == "monitor" else a["watch"]
+            lines.append(f"| {a['id']} {a['title']} | {watched} |")
+        lines.append("")
     lines += [
         "## Traceability matrix",
         "",
@@ -217,12 +232,17 @@ def write_bundle(out_dir: Path, bundle: Bundle, key: Ed25519PrivateKey) -> list[
     """Write every artifact of ``bundle`` into ``out_dir`` and sign the manifest."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, text in (
+    view = case_view(bundle)
+    artifacts = [
         ("evidence.json", bundle.to_json()),
         ("report.html", render_html(bundle)),
         ("report.md", render_markdown(bundle)),
         ("junit.xml", render_junit(bundle)),
-    ):
+        ("summary.html", render_summary(bundle)),
+    ]
+    if view is not None:
+        artifacts += [("argument.gsn.yaml", view.gsn_yaml), ("argument.svg", view.top_svg)]
+    for name, text in artifacts:
         path = out_dir / name
         path.write_text(text, encoding="utf-8")
         written.append(path)

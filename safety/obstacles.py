@@ -37,6 +37,7 @@ from safety.model.monitors import MonitorVerdict
 from safety.model.stopping import StoppingParams
 
 __all__ = [
+    "OBJECT_SPEED_WATCH",
     "bodies_now",
     "faster_than_the_domain",
     "governor_rows",
@@ -45,6 +46,10 @@ __all__ = [
     "still_zones",
     "with_columns",
 ]
+
+
+# The name the operating-domain check on object speed records its STOPs under (assumption A-4).
+OBJECT_SPEED_WATCH = "domain:object_speed"
 
 
 def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
@@ -115,7 +120,7 @@ def faster_than_the_domain(
         return None
     i = int(np.flatnonzero(fast)[np.argmax(low[fast])])
     return MonitorVerdict.stop(
-        "domain:object_speed",
+        OBJECT_SPEED_WATCH,
         f"track {int(tracks.track_id[i])} moves at {speed[i]:.2f} m/s (at least "
         f"{low[i]:.2f}), above predict.max_object_speed_mps = {pc.max_object_speed_mps}: "
         "outside the operating domain the predictions assume",

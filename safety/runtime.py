@@ -59,6 +59,7 @@ from safety.geometry.costmap import CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
 from safety.geometry.path import PathAhead, PathClearance, PathDistances
 from safety.geometry.swept import SweptPathChecker
+from safety.model.braking import BrakingWatch
 from safety.model.decision import Decision, GovernorInputs, decide
 from safety.model.freshness import is_fresh
 from safety.model.governor import Governor
@@ -175,6 +176,9 @@ class Runtime:
         self.costmap = CostmapBuilder(config.costmap)
         self.writer = writer
         self.previous_now_s: float | None = None
+        # When the STOP in force was decided (None while moving) and the braking it buys.
+        self.stop_since_s: float | None = None
+        self.braking = BrakingWatch(config.stopping.control_cycle_s, self.params.decel_max_mps2)
         self.previous_scan_stamp_s: float | None = None
         self.cycles = 0
 
@@ -232,6 +236,12 @@ class Runtime:
                 driver_error="" if inp.driver is None else inp.driver.last_error,
                 cycle_duration_s=duration,
                 over_cap=tuple(over_cap),
+                braking_decel_mps2=self.braking.observe(
+                    None if inp.scan is None else inp.scan.stamp_s,
+                    inp.robot_pose,
+                    self.stop_since_s,
+                ),
+                braking_min_mps2=float(self.params.decel_min_mps2),
             )
             decision = decide(
                 self.governor, inputs, observation, self.config.monitors, stage_verdicts
@@ -245,6 +255,10 @@ class Runtime:
         wall = dict(watch.wall_s)
         record = CycleRecord(observation, decision, inputs, summarize(**parts), wall)
         command = decision.command
+        if command.action is not Action.STOP:
+            self.stop_since_s = None
+        elif self.stop_since_s is None:
+            self.stop_since_s = decision_now
         if self.writer is not None:
             try:
                 self.writer.append(record)

@@ -137,7 +137,10 @@ class MonitorSection(Section):
     more than ``max_clock_jump_back_s``, when a cycle takes longer than ``cycle_deadline_s``,
     when more than ``max_blocked_fraction`` of the beams read below the minimum range (a
     covered window) or when any per-cycle cap dropped something. An incomplete scan (frames
-    rejected by the driver) limits the speed to ``degraded_speed_mps``.
+    rejected by the driver) limits the speed to ``degraded_speed_mps``. Under a STOP, a robot
+    that decelerates at less than ``braking_tolerance`` times ``stopping.decel_min_mps2``
+    (measured from odometry: the stopping proof's braking assumption) is recorded as a STOP of
+    the ``braking`` monitor.
     """
 
     scan_max_age_s: float = Field(0.18, gt=0.0, le=10.0)
@@ -146,6 +149,7 @@ class MonitorSection(Section):
     clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)
     max_blocked_fraction: float = Field(0.5, ge=0.0, le=1.0)
     degraded_speed_mps: float = Field(0.3, ge=0.0, le=10.0)
+    braking_tolerance: float = Field(0.8, gt=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _skew_below_age(self) -> Self:

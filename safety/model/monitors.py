@@ -120,6 +120,8 @@ class Observation:
     driver_error: str = ""
     cycle_duration_s: float | None = None
     over_cap: tuple[tuple[str, int], ...] = field(default_factory=tuple)
+    braking_decel_mps2: float | None = None
+    braking_min_mps2: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``over_cap`` as a mapping; non-finite floats as text)."""
@@ -137,7 +139,7 @@ class Observation:
         for key in ("now_s", "previous_now_s", "scan_stamp_s", "previous_scan_stamp_s"):
             if isinstance(values.get(key), str):
                 values[key] = float(values[key])
-        for key in ("driver_age_s", "cycle_duration_s"):
+        for key in ("driver_age_s", "cycle_duration_s", "braking_decel_mps2"):
             if isinstance(values.get(key), str):
                 values[key] = float(values[key])
         values["over_cap"] = tuple((str(k), int(v)) for k, v in values["over_cap"].items())
@@ -242,12 +244,31 @@ def operating_domain(obs: Observation, cfg: MonitorSection) -> MonitorVerdict:
     return MonitorVerdict.ok(name)
 
 
+def braking(obs: Observation, cfg: MonitorSection) -> MonitorVerdict:
+    """STOP, naming the broken assumption, when the robot brakes under a STOP more weakly than
+    ``monitors.braking_tolerance`` times the deceleration the stopping proof assumes (A-1)."""
+    name = "braking"
+    decel, least = obs.braking_decel_mps2, obs.braking_min_mps2
+    if decel is None or least is None:
+        return MonitorVerdict.ok(name)
+    if not decel >= cfg.braking_tolerance * least:
+        return MonitorVerdict.stop(
+            name,
+            f"the robot decelerated at {decel:.3f} m/s^2 under a STOP, below "
+            f"monitors.braking_tolerance x stopping.decel_min_mps2 = "
+            f"{cfg.braking_tolerance} x {least} m/s^2: the stopping proof's braking "
+            "assumption (A-1) does not hold",
+        )
+    return MonitorVerdict.ok(name)
+
+
 DEFAULT_MONITORS: tuple[tuple[str, Monitor], ...] = (
     ("clock", clock),
     ("scan_freshness", scan_freshness),
     ("driver", driver_health),
     ("deadline", deadline),
     ("operating_domain", operating_domain),
+    ("braking", braking),
 )
 
 

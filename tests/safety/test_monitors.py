@@ -55,6 +55,7 @@ def test_a_healthy_cycle_draws_no_objection() -> None:
         "driver",
         "deadline",
         "operating_domain",
+        "braking",
     ]
 
 
