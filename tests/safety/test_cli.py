@@ -154,3 +154,35 @@ def test_certify_refuses_a_bad_signing_key_before_running_anything(tmp_path: Pat
     assert done.returncode == 2
     assert "keep the key outside it" in done.stderr
     assert not inside.exists()
+
+
+COMMANDS = (
+    ("run",),
+    ("certify",),
+    ("train",),
+    ("requirements",),
+    ("config", "show"),
+    ("config", "check"),
+    ("sim", "list"),
+    ("sim", "show"),
+    ("sim", "dataset"),
+    ("evidence", "verify"),
+    ("audit", "verify"),
+    ("audit", "show"),
+    ("audit", "tail"),
+    ("audit", "replay"),
+)
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
+def test_every_command_help_has_an_example_and_its_exit_codes(command: tuple[str, ...]) -> None:
+    from typer.testing import CliRunner
+
+    from evidence.cli.main import app
+
+    done = CliRunner().invoke(app, [*command, "--help"], env={"COLUMNS": "200"})
+    assert done.exit_code == 0, done.output
+    text = " ".join(done.output.split())
+    assert "Example" in text, text[:300]
+    assert "Exit codes" in text, text[:300]
+    assert f"safecase {' '.join(command)}" in text, text[:300]
