@@ -17,10 +17,12 @@ from evidence.profiles import examples
 from evidence.record import current
 from pipeline.sources.serial import rplidar as rp
 from pipeline.sources.serial import scip
+from pipeline.sources.serial.devices import ScipDevice
 from pipeline.sources.serial.errors import DriverError
 from pipeline.sources.serial.faults import BYTE_FAULTS, FaultKind, FaultPlan, inject
 from pipeline.sources.serial.rplidar_capsule import CapsuleFields, decode_capsule, encode_capsule
 from pipeline.sources.serial.rplidar_stream import RplidarStream
+from pipeline.sources.serial.scip_answers import parse_answers
 from pipeline.sources.serial.scip_stream import ScipStream
 from pipeline.sources.serial.transport import link_state
 from pipeline.types import DriverState
@@ -218,6 +220,41 @@ def test_spliced_garbage_never_yields_data_that_was_not_sent(
     record.count("spliced", f"{link} streams", 1)
 
 
+_SIMPLE_COMMANDS = [b"SCIP2.0", b"VV", b"PP", b"II", b"BM", b"QT", b"RS", b"XX"]
+
+
+@pytest.mark.requirement("SR-DRV-2", code=["pipeline/sources/serial/scip_answers.py"])
+@given(
+    commands=st.lists(st.sampled_from(_SIMPLE_COMMANDS), min_size=1, max_size=6),
+    garbage=st.lists(
+        st.lists(st.binary(min_size=1, max_size=40).filter(lambda b: b"\n" not in b), max_size=3),
+        min_size=6,
+        max_size=6,
+    ),
+    data=st.binary(max_size=300),
+)
+def test_scip_answers_between_garbage_lines_are_all_kept(
+    commands: list[bytes], garbage: list[list[bytes]], data: bytes
+) -> None:
+    device = ScipDevice()
+    stream = b""
+    expected = []
+    for command, junk in zip(commands, garbage, strict=False):
+        stream += b"".join(line + b"\n" for line in junk)
+        answer = device.receive(command + b"\n")
+        expected.append(answer.split(b"\n")[:2])
+        stream += answer
+    parsed = parse_answers(stream, set(commands))
+    got = [[a.echo, a.status + bytes((scip.checksum(a.status),))] for a in parsed.answers]
+    # Every valid answer comes back, in order, whatever garbage lines lie between them.
+    assert got == expected
+    assert parsed.consumed == len(stream)
+    # Arbitrary bytes never raise, and the settled part never exceeds what was given.
+    for buf in (data, stream[: len(stream) // 2] + data):
+        assert 0 <= parse_answers(buf).consumed <= len(buf)
+    current().count("scip answers", "answers kept", len(got))
+
+
 # ------------------------------------------------------------------------- SR-DRV-3
 @pytest.mark.requirement("SR-DRV-3", code=[*STREAMS, "pipeline/sources/serial/faults.py"])
 @settings(max_examples=examples(400))
@@ -234,7 +271,9 @@ def test_every_injected_fault_is_detected_or_harmless(
     frames = device_frames(link, scans)
     clean, clean_counters = decode(link, frames, frames.data)
     rng = np.random.default_rng(seed)
-    index = data.draw(st.integers(0, frames.n_scan_frames - 1), label="frame")
+    # The frame comes from the seeded generator: Hypothesis's own draws crowd at frame 0,
+    # which in an express stream lies in the withheld first turn (harmless by construction).
+    index = int(rng.integers(0, frames.n_scan_frames))
     faulty_frames = list(frames.frames)
     faulty_frames[index] = inject(kind, faulty_frames[index], rng, FaultPlan()).data
     stream = frames.prefix + b"".join(faulty_frames)

@@ -17,12 +17,16 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from pipeline.sources.serial.rplidar import Q6_PER_TURN, q6_to_angles
+from pipeline.sources.serial.rplidar import q6_to_angles
 from pipeline.types import Scan
 
 __all__ = ["IncompletePolicy", "LinkCounters", "RevolutionBuilder"]
 
 IncompletePolicy = Literal["mark", "drop"]
+# A device sweeps one way: within a revolution the angle never falls by more than an express
+# node's compensation (dtheta below 8 degrees). A larger fall starts a new revolution, also
+# after a gap that swallowed the wrap, so one scan never holds a sector twice.
+BACKWARD_CUT_Q6 = 16 * 64
 I64Array = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
@@ -44,8 +48,9 @@ class LinkCounters:
 class RevolutionBuilder:
     """Accumulates committed beams and cuts them into revolutions.
 
-    A revolution ends where a beam carries the start flag or the angle wraps (falls by more
-    than half a turn). ``max_beams`` bounds the work per revolution: a revolution that grows
+    A revolution ends where a beam carries the start flag or the angle falls back by more
+    than :data:`BACKWARD_CUT_Q6` (the wrap past 360 degrees, or a gap that swallowed it).
+    ``max_beams`` bounds the work per revolution: a revolution that grows
     beyond it (a device that never wraps) is cut and emitted incomplete.
     """
 
@@ -111,7 +116,7 @@ class RevolutionBuilder:
         prev = np.empty(n, dtype=np.int64)
         prev[0] = self._last_angle
         prev[1:] = angle_q6[:-1]
-        wrap = (angle_q6 < prev - Q6_PER_TURN // 2) & (prev >= 0)
+        wrap = (angle_q6 < prev - BACKWARD_CUT_Q6) & (prev >= 0)
         cut = wrap | start if start is not None else wrap
         gap_wrap = self._gap and bool(wrap[0]) and not (start is not None and bool(start[0]))
         self._gap = False

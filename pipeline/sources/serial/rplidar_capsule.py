@@ -152,12 +152,14 @@ def _express_cabins(raw: U8Array) -> tuple[I64Array, I64Array]:
     cab = raw[:, 4:CAPSULE_BYTES].reshape(-1, 16, 5).astype(np.int64)
     w1 = cab[..., 0] | (cab[..., 1] << 8)
     w2 = cab[..., 2] | (cab[..., 3] << 8)
-    dist = np.stack((w1 >> 2, w2 >> 2), axis=-1).reshape(-1, NODES_PER_CAPSULE)
-    dtheta = np.stack(
-        ((cab[..., 4] & 0x0F) | ((w1 & 0x3) << 4), (cab[..., 4] >> 4) | ((w2 & 0x3) << 4)),
-        axis=-1,
-    ).reshape(-1, NODES_PER_CAPSULE)
-    return dist, dtheta
+    # Node 2c comes from the cabin's first word, node 2c + 1 from its second.
+    dist = np.empty((cab.shape[0], 16, 2), dtype=np.int64)
+    dist[..., 0] = w1 >> 2
+    dist[..., 1] = w2 >> 2
+    dtheta = np.empty_like(dist)
+    dtheta[..., 0] = (cab[..., 4] & 0x0F) | ((w1 & 0x3) << 4)
+    dtheta[..., 1] = (cab[..., 4] >> 4) | ((w2 & 0x3) << 4)
+    return dist.reshape(-1, NODES_PER_CAPSULE), dtheta.reshape(-1, NODES_PER_CAPSULE)
 
 
 def _wrap_q6(angle: I64Array) -> I64Array:

@@ -33,6 +33,7 @@ __all__ = [
     "ScipCommand",
     "ScipParams",
     "checksum",
+    "data_line_lengths",
     "decode_data_lines",
     "decode_info_lines",
     "decode_values",
@@ -228,71 +229,52 @@ def encode_data_lines(values: npt.ArrayLike, width: int, timestamp_ms: int | Non
     return lines
 
 
-def decode_data_lines(
-    lines: list[bytes], width: int, n_values: int, offset: int = 0, *, from_first: bool = True
-) -> tuple[I64Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Values of a scan's data lines (each payload + checksum, no LF; no timestamp line).
-
-    Returns ``(values, valid, lines_ok)``: a line is good when it passes its checksum and
-    alphabet and has the length its position requires (64 characters, the last one the
-    remainder); a value is valid only when all its characters lie in good lines. Values of
-    a failing line are never guessed. Lines beyond the expected count are ignored (and
-    reported not good). ``from_first=False`` says the first line may not be the first data
-    line (the line before it was broken): lines are then placed only by counting back from
-    the last one.
-    """
+def data_line_lengths(width: int, n_values: int) -> I64Array:
+    """The length (payload + checksum character, no LF) of each data line of a scan answer
+    carrying ``n_values`` values of ``width`` characters: 65, the last one the remainder."""
     total = n_values * width
     expected = -(-total // DATA_LINE_CHARS)
     want = np.full(expected, DATA_LINE_CHARS + 1, dtype=np.int64)
     if expected:
         want[-1] = total - DATA_LINE_CHARS * (expected - 1) + 1
-    lengths = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    return want
+
+
+def decode_data_lines(
+    lines: list[bytes], width: int, n_values: int, offset: int = 0
+) -> tuple[I64Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Values of a scan's data lines (each payload + checksum, no LF; no timestamp line).
+
+    Returns ``(values, valid, lines_ok)``. The command fixes how many data lines an answer
+    has and how long each is (:func:`data_line_lengths`); only when both add up is a line's
+    position certain, and a line is then good when it passes its checksum and alphabet. A
+    value is valid only when all its characters lie in good lines; values of a failing line
+    are never guessed. When the count or any length does not add up (a lost, extra, merged,
+    split or repeated line), no line can be placed without guessing: nothing is valid and
+    the caller rejects the revolution (SR-DRV-2).
+    """
+    want = data_line_lengths(width, n_values)
+    expected = want.shape[0]
+    total = n_values * width
     lines_ok = np.zeros(len(lines), dtype=np.bool_)
-    if from_first and len(lines) >= expected and np.array_equal(lengths[:expected], want):
-        # Fast path (every line has its length): check and decode all lines at once.
-        raw = np.frombuffer(b"".join(lines[:expected]), dtype=np.uint8)
-        ends = np.cumsum(want)
-        payload_mask = np.ones(raw.shape[0], dtype=np.bool_)
-        payload_mask[ends - 1] = False
-        line_of = np.repeat(np.arange(expected), want)
-        in_alphabet = (raw >= CHAR_MIN) & (raw <= CHAR_MAX)
-        sums = np.bincount(line_of[payload_mask], weights=raw[payload_mask], minlength=expected)
-        ok = ((sums.astype(np.int64) & 0x3F) + CHAR_MIN) == raw[ends - 1]
-        ok &= np.bincount(line_of, weights=~in_alphabet, minlength=expected) == 0
-        lines_ok[:expected] = ok
-        chars = raw[payload_mask]
-        good = np.repeat(ok, want - 1)
-        chars = np.where(good, chars, CHAR_MIN).astype(np.uint8)
-    else:
-        # A line of the wrong length (a lost or extra byte, a lost LF) breaks the counting of
-        # lines: a line's position is certain only when no such line lies before it (count
-        # from the first line) or none lies after it (count back from the last line).
-        chars = np.full(total, CHAR_MIN, dtype=np.uint8)
-        good = np.zeros(total, dtype=np.bool_)
-        n = len(lines)
-        position = np.full(n, -1, dtype=np.int64)
-        for i in range(min(n, expected) if from_first else 0):
-            if lengths[i] != want[i]:
-                break
-            position[i] = i
-        for back in range(1, min(n, expected) + 1):
-            i, slot = n - back, expected - back
-            if lengths[i] != want[slot]:
-                break
-            position[i] = slot
-        for index, line in enumerate(lines):
-            slot = int(position[index])
-            if slot < 0 or not line_ok(line):
-                continue
-            payload = np.frombuffer(line[:-1], dtype=np.uint8)
-            if np.any((payload < CHAR_MIN) | (payload > CHAR_MAX)):
-                continue
-            begin = slot * DATA_LINE_CHARS
-            chars[begin : begin + payload.shape[0]] = payload
-            good[begin : begin + payload.shape[0]] = True
-            lines_ok[index] = True
-    values = decode_values(chars, width, offset)
-    valid = np.all(good.reshape(-1, width), axis=1)
+    lengths = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    if len(lines) != expected or not np.array_equal(lengths, want):
+        return np.zeros(n_values, dtype=np.int64), np.zeros(n_values, dtype=np.bool_), lines_ok
+    # Every line has its place: check and decode all lines at once.
+    raw = np.frombuffer(b"".join(lines), dtype=np.uint8)
+    ends = np.cumsum(want)
+    payload_mask = np.ones(raw.shape[0], dtype=np.bool_)
+    payload_mask[ends - 1] = False
+    line_of = np.repeat(np.arange(expected), want)
+    in_alphabet = (raw >= CHAR_MIN) & (raw <= CHAR_MAX)
+    sums = np.bincount(line_of[payload_mask], weights=raw[payload_mask], minlength=expected)
+    ok = ((sums.astype(np.int64) & 0x3F) + CHAR_MIN) == raw[ends - 1]
+    ok &= np.bincount(line_of, weights=~in_alphabet, minlength=expected) == 0
+    lines_ok[:] = ok
+    good = np.repeat(ok, want - 1)
+    chars = np.where(good, raw[payload_mask], CHAR_MIN).astype(np.uint8)
+    values = decode_values(chars[:total], width, offset)
+    valid = np.all(good[:total].reshape(-1, width), axis=1)
     return values, valid, lines_ok
 
 

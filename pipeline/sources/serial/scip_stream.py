@@ -4,11 +4,17 @@ revolution out (requirement SR-DRV-2).
 :meth:`ScipStream.feed` never raises. A scan answer is recognised by its echo-back (the
 command the driver sent; for MD/MS only the remaining-scans field may differ), then a status
 line ``99`` (or ``00`` for GD/GS), a timestamp line and data lines up to an empty line. Each
-checksummed line counts as one frame. A line that fails its checksum, alphabet or expected
-length loses exactly the values it carries; the scan is then emitted incomplete with the
-values of the good lines (policy ``"mark"``) or withheld (``"drop"``). Lines that belong to
-no recognisable answer are rejected and counted; an echo-back arriving before the empty line
-closes the answer in progress (a lost terminator loses no data).
+checksummed line counts as one frame. The command fixes how many data lines follow and how
+long each is: when the count and every length add up, a line that fails its checksum or
+alphabet loses exactly the values it carries, and the scan is emitted incomplete with the
+values of the good lines (policy ``"mark"``) or withheld (``"drop"``). When they do not add
+up (a line lost, repeated, merged or split, an empty line spliced in), no line's position is
+certain: the revolution is rejected and counted, never placed by guesswork. Lines that belong
+to no recognisable answer are rejected and counted; an echo-back arriving before the empty
+line closes the answer in progress.
+
+Two data lines of equal length swapped on the wire keep every count, length and checksum:
+SCIP 2.0 has nothing to detect it (a limit of the protocol, measured by the fuzz campaign).
 """
 
 from __future__ import annotations
@@ -66,7 +72,6 @@ class ScipStream:
         self._state = _State.IDLE
         self._lines: list[bytes] = []
         self._broken = False
-        self._head_lost = False
         self._stamp_s = 0.0
         self._seq = 0
 
@@ -77,7 +82,6 @@ class ScipStream:
         self._state = _State.IDLE
         self._lines = []
         self._broken = False
-        self._head_lost = False
 
     def _is_echo(self, line: bytes) -> bool:
         if not self._streaming:
@@ -89,7 +93,9 @@ class ScipStream:
         )
 
     def feed(self, data: bytes, now_s: float) -> list[Scan]:
-        """Consume ``data`` read at host time ``now_s``; return the completed scans."""
+        """Consume ``data`` read at host time ``now_s``; return the completed scans.
+
+        Never raises; the work is linear in ``len(data)`` (SR-DRV-2, SR-DRV-6)."""
         parts = (self._buf + data).split(b"\n")
         rest = parts.pop()
         out: list[Scan] = []
@@ -122,7 +128,8 @@ class ScipStream:
                 chunk = chunk[:offset]
                 break
         self._lines.extend(chunk)
-        if len(self._lines) > self._expected_lines + 1:
+        if len(self._lines) > self._expected_lines:
+            # More data lines than the command asks for: the answer cannot be placed.
             self._broken = True
             self._finish(out)
             self._state = _State.IDLE
@@ -143,7 +150,6 @@ class ScipStream:
             self._state = _State.STATUS
             self._lines = []
             self._broken = False
-            self._head_lost = False
             # The answer follows a whole revolution's measurement: date the first beam one
             # revolution before the echo arrived (never later than it was measured).
             self._stamp_s = now_s - self.params.scan_period_s
@@ -164,14 +170,13 @@ class ScipStream:
                 self._reject_answer()
                 self._state = _State.IDLE
                 return
+            # A timestamp line of the wrong length (a lost or extra LF) also shifts the data
+            # lines; their count and lengths then do not add up and the answer is rejected.
             if len(line) == 5 and encoded_line_ok(line):
                 self.counters.frames_ok += 1
             else:
                 self._reject_line(line)
                 self._broken = True
-                # A timestamp line of the wrong length may have swallowed the first data
-                # line (a lost LF): the data lines can then only be placed from the end.
-                self._head_lost = len(line) != 5
             self._state = _State.DATA
             return
         self._lines.append(line)  # DATA lines are normally taken by _data_lines
@@ -180,6 +185,8 @@ class ScipStream:
         if len(line) != 3 or not encoded_line_ok(line):
             self._reject_line(line)
             self._state = _State.SKIP
+            if self._streaming:
+                self.counters.scans_dropped += 1  # the answer of a revolution is lost
             return
         self.counters.frames_ok += 1
         status = line[:2]
@@ -204,7 +211,7 @@ class ScipStream:
         lines = self._lines
         self._lines = []
         values, valid, lines_ok = decode_data_lines(
-            lines, self.command.width, self.command.n_values, from_first=not self._head_lost
+            lines, self.command.width, self.command.n_values
         )
         good_lines = int(np.count_nonzero(lines_ok))
         bad_lines = len(lines) - good_lines

@@ -20,9 +20,9 @@ import serial
 
 from pipeline.config import DriverSection
 from pipeline.sources.serial import rplidar as rp
-from pipeline.sources.serial import scip
+from pipeline.sources.serial import scip, scip_answers
 from pipeline.sources.serial.assembly import LinkCounters
-from pipeline.sources.serial.errors import ChecksumError, DeviceError, LinkError, ProtocolError
+from pipeline.sources.serial.errors import DeviceError, LinkError, ProtocolError
 from pipeline.sources.serial.rplidar_stream import RplidarStream
 from pipeline.sources.serial.scip_stream import ScipStream
 
@@ -190,29 +190,27 @@ class ScipSession:
 
 
 def _scip_answer(
-    link: SerialLink, command: bytes, timeout_s: float, accept: tuple[bytes, ...] | None
-) -> tuple[list[bytes], bytes]:
-    """Send ``command`` (with LF); return its data lines and the bytes after its answer."""
-    link.write(command)
-    echo = command.rstrip(b"\n") + b"\n"
+    link: SerialLink,
+    command: scip.ScipCommand,
+    timeout_s: float,
+    accept: tuple[bytes, ...] | None,
+) -> tuple[tuple[bytes, ...], bytes]:
+    """Send ``command``; return the data lines of its first whole valid answer and the bytes
+    after it. Garbage, garbled answers and answers to other commands before it are skipped
+    (SR-DRV-2); a status outside ``accept`` is a :class:`DeviceError`."""
+    link.write(command.encode())
+    line = command.line()
 
-    def done(buf: bytes) -> tuple[list[bytes], int] | None:
-        at = buf.find(echo)
-        if at < 0:
+    def done(buf: bytes) -> tuple[scip_answers.ScipAnswer, int] | None:
+        answer, end = scip_answers.answer_to(buf, command)
+        if answer is None:
             return None
-        end = buf.find(b"\n\n", at + len(echo) - 1)
-        if end < 0:
-            return None
-        lines = buf[at + len(echo) : end].split(b"\n")
-        status = lines[0]
-        if not scip.line_ok(status) or len(status) != 3:
-            raise ChecksumError(f"scip {echo[:-1]!r}: bad status line {status!r}", at)
-        if accept is not None and status[:2] not in accept:
-            raise DeviceError(f"scip {echo[:-1]!r}: device status {status[:2]!r}", at)
-        return lines[1:], end + 2
+        if accept is not None and answer.status not in accept:
+            raise DeviceError(f"scip {line!r}: device status {answer.status!r}", answer.offset)
+        return answer, end
 
-    (lines, end), buf = _read_until(link, done, timeout_s, f"answer to {echo[:-1]!r}")
-    return lines, buf[end:]
+    (answer, end), buf = _read_until(link, done, timeout_s, f"answer to {line!r}")
+    return answer.lines, buf[end:]
 
 
 def start_scip(link: SerialLink, config: DriverSection, counters: LinkCounters) -> ScipSession:
@@ -220,11 +218,11 @@ def start_scip(link: SerialLink, config: DriverSection, counters: LinkCounters) 
     timeout_s = config.silent_timeout_s
     link.write(scip.ScipCommand(scip.Name.QT).encode())
     link.drain()
-    _scip_answer(link, scip.ScipCommand(scip.Name.SCIP20).encode(), timeout_s, None)
-    lines, _ = _scip_answer(link, scip.ScipCommand(scip.Name.PP).encode(), timeout_s, (b"00",))
-    params = scip.ScipParams.from_items(scip.decode_info_lines(lines))
+    _scip_answer(link, scip.ScipCommand(scip.Name.SCIP20), timeout_s, None)
+    lines, _ = _scip_answer(link, scip.ScipCommand(scip.Name.PP), timeout_s, (b"00",))
+    params = scip.ScipParams.from_items(scip.decode_info_lines(list(lines)))
     command = scip.ScipCommand(scip.Name(config.scip_command), params.amin, params.amax, 1, 0, 0)
-    _, leftover = _scip_answer(link, command.encode(), timeout_s, (b"00",))
+    _, leftover = _scip_answer(link, command, timeout_s, (b"00",))
     stream = ScipStream(
         params,
         command,
