@@ -22,6 +22,7 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -51,7 +52,16 @@ __all__ = [
 @dataclass
 class RunSummary:
     """What a run did: the command mix, every distinct reason's count, per-stage wall-clock
-    samples [s], the cycle durations [s] and, for a simulation, its result."""
+    samples [s], the cycle durations [s], the cycles' thread CPU times [s] and, for a
+    simulation, its result.
+
+    ``cycles`` and the counters count every cycle. The samples are every cycle's up to
+    ``SAMPLES`` cycles; then, each time the lists fill, every other kept cycle is dropped, so
+    the kept cycles stay evenly spaced over the run (every ``2**k``-th) and a run of any
+    length keeps at most ``SAMPLES`` per series (SR-RUN-5).
+    """
+
+    SAMPLES: ClassVar[int] = 8192
 
     name: str
     cycles: int = 0
@@ -62,17 +72,26 @@ class RunSummary:
     cpu_s: list[float] = field(default_factory=list)
     sim: SimResult | None = None
     audit_path: Path | None = None
+    sample_every: int = field(default=1, init=False)
+    """Every how many cycles one is kept in the samples now."""
 
     def add(self, out: CycleOutput) -> None:
         """Fold one cycle in."""
+        index = self.cycles
         self.cycles += 1
         self.actions[out.command.action.value] += 1
         for reason in out.command.reasons:
             self.reasons[_reason_kind(reason)] += 1
+        if index % self.sample_every:
+            return
         for stage, dt in out.wall_s.items():
             self.stage_s.setdefault(stage, []).append(dt)
         self.cycle_s.append(float(out.record.observation.cycle_duration_s or 0.0))
         self.cpu_s.append(out.cpu_s)
+        if len(self.cycle_s) >= self.SAMPLES:
+            for series in (self.cycle_s, self.cpu_s, *self.stage_s.values()):
+                del series[1::2]
+            self.sample_every *= 2
 
     @property
     def moving_contacts(self) -> int:

@@ -27,6 +27,7 @@ from pipeline.sources.logs.source import LogSource
 from pipeline.sources.logs.stamps import StampRule
 from pipeline.sources.serial.source import EmulatedSource, SerialSource
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.simulation import BOUNDED
 from pipeline.sources.sim.source import SimSource
 from safety.run import RunSummary, contact_speeds, run_audited
 from safety.runtime import CycleOutput
@@ -189,10 +190,11 @@ def _device_source(
     lidar = "rplidar_a2" if emulate == "rplidar" else "hokuyo_ust10lx"
     bench = overridden(cfg, {"sim": {"ego_speed_mps": 0.0, "lidar_device": lidar}})
     wanted = max_scans or DEFAULT_DEVICE_SCANS
-    sim = make_simulation(bench, name, seed)
+    # Bounded retention: the device only needs each scan once (a long run keeps no frames).
+    sim = make_simulation(bench, name, seed, retention=BOUNDED)
     period_s = sim.lidar.spec.scan_period_s
     if sim.n_scans < wanted + 10:
-        sim = make_simulation(bench, name, seed, (wanted + 10) * period_s)
+        sim = make_simulation(bench, name, seed, (wanted + 10) * period_s, retention=BOUNDED)
     driver = cfg.driver.model_copy(update={"protocol": emulate, "port_url": "emulated"})
     return EmulatedSource(driver, period, sim.scans(), 1.0 / period_s)
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.frames import to_parent
+from pipeline.sources.sim.history import ThinnedRows
 from pipeline.sources.sim.shapes import Outline, rectangle
 from pipeline.sources.sim.truth import ScanTruth
 from pipeline.types import FloatArray, Scan, frozen_array
@@ -146,28 +147,52 @@ class Ego:
     """The robot's state over a run, stepped with a fixed ``dt_s`` from time 0.
 
     Keeps its time / arc history so poses at any past instant (a beam's own time) can be
-    interpolated.
+    interpolated. With ``window_steps`` None (the default) it keeps every step of the run
+    (``n_steps`` of them). With ``window_steps`` set it keeps only that many recent steps
+    for interpolation and :meth:`rewind`, and its :meth:`log` holds at most ``log_rows``
+    evenly thinned steps (:class:`~pipeline.sources.sim.history.ThinnedRows`) plus the steps
+    :meth:`pin` asks for, so its memory does not grow with the run (SR-RUN-5). Steps become
+    final with :meth:`commit` (or when they leave the window); a rewind never goes before the
+    last final step. Values at the kept times are the same bits either way.
     """
 
-    def __init__(self, spec: EgoSpec, dt_s: float, n_steps: int) -> None:
+    def __init__(
+        self,
+        spec: EgoSpec,
+        dt_s: float,
+        n_steps: int,
+        *,
+        window_steps: int | None = None,
+        log_rows: int = 8192,
+    ) -> None:
+        if window_steps is not None and window_steps < 1:
+            raise ValueError(f"Ego: window_steps must be >= 1, got {window_steps}")
         self.spec = spec
         self.dt_s = dt_s
         self.speed_mps = spec.initial_speed_mps
         self.target_mps = spec.initial_speed_mps
         self.halted = False
         self._pending: deque[tuple[float, float]] = deque()
-        self._t = np.zeros(n_steps + 1)
-        self._arc = np.zeros(n_steps + 1)
-        self._speed = np.zeros(n_steps + 1)
-        self._cmd = np.zeros(n_steps + 1)
+        self._window = window_steps
+        size = n_steps + 1 if window_steps is None else 2 * (window_steps + 1)
+        self._t = np.zeros(size)
+        self._arc = np.zeros(size)
+        self._speed = np.zeros(size)
+        self._cmd = np.zeros(size)
         self._speed[0] = self.speed_mps
         self._cmd[0] = self.target_mps
         self._n = 0
+        self._base = 0  # the step held in slot 0
+        self._final = 0  # steps up to this one are final
+        self._log: ThinnedRows | None = None
+        if window_steps is not None:
+            self._log = ThinnedRows(4, log_rows)
+            self._log.append(self._row(0))
 
     @property
     def time_s(self) -> float:
         """Current time."""
-        return float(self._t[self._n])
+        return float(self._t[self._n - self._base])
 
     @property
     def steps_done(self) -> int:
@@ -177,7 +202,7 @@ class Ego:
     @property
     def arc_m(self) -> float:
         """Distance driven along the route."""
-        return float(self._arc[self._n])
+        return float(self._arc[self._n - self._base])
 
     def command(self, speed_mps: float, issued_s: float) -> None:
         """Queue a commanded speed (clipped to [0, max speed]); takes effect after the latency.
@@ -197,10 +222,41 @@ class Ego:
     def rewind(self, steps_done: int) -> None:
         """Forget every step after ``steps_done`` (the speed is that step's; commands that
         were taken up after it are lost, which matters only for a robot about to halt)."""
-        if not 0 <= steps_done <= self._n:
-            raise ValueError(f"Ego.rewind: step {steps_done} is not in 0..{self._n}")
+        if not self._final <= steps_done <= self._n:
+            raise ValueError(f"Ego.rewind: step {steps_done} is not in {self._final}..{self._n}")
         self._n = steps_done
-        self.speed_mps = float(self._speed[steps_done])
+        self.speed_mps = float(self._speed[steps_done - self._base])
+
+    def commit(self) -> None:
+        """Make every step so far final: a bounded ego logs them and may drop them later."""
+        self._commit(self._n)
+
+    def pin(self, step: int) -> None:
+        """Keep ``step`` in a bounded ego's :meth:`log` (a full log keeps every step)."""
+        if self._log is not None:
+            self._log.pin(step)
+
+    def _row(self, step: int) -> FloatArray:
+        k = step - self._base
+        return np.array([self._t[k], self._arc[k], self._speed[k], self._cmd[k]])
+
+    def _commit(self, step: int) -> None:
+        if self._log is not None:
+            for k in range(self._final + 1, step + 1):
+                self._log.append(self._row(k))
+        self._final = max(self._final, step)
+
+    def _make_room(self) -> None:
+        """Slide a bounded window so that the next step has a slot."""
+        if self._window is None or self._n + 1 - self._base < self._t.size:
+            return
+        lo = self._n - self._window  # the oldest step kept
+        self._commit(lo)
+        src = lo - self._base
+        keep = self._window + 1
+        for column in (self._t, self._arc, self._speed, self._cmd):
+            column[:keep] = column[src : src + keep]
+        self._base = lo
 
     def step(self) -> None:
         """Advance one ``dt_s``."""
@@ -221,40 +277,61 @@ class Ego:
         arc = self.arc_m + 0.5 * (v0 + v1) * self.dt_s
         if arc >= self.spec.route.length_m:
             arc, v1 = self.spec.route.length_m, 0.0
+        self._make_room()
         self.speed_mps = v1
         self._n += 1
-        self._t[self._n] = t1
-        self._arc[self._n] = arc
-        self._speed[self._n] = v1
-        self._cmd[self._n] = self.target_mps
+        k = self._n - self._base
+        self._t[k] = t1
+        self._arc[k] = arc
+        self._speed[k] = v1
+        self._cmd[k] = self.target_mps
 
     def pose(self) -> FloatArray:
         """Current pose (x, y, heading)."""
         pose: FloatArray = self.spec.route.pose_at(np.array([self.arc_m]))[0]
         return pose
 
+    def _held(self, t_s: FloatArray) -> tuple[FloatArray, slice]:
+        """The query times and the slots of the steps held; a bounded ego refuses times
+        before its window (it no longer knows them)."""
+        t = np.asarray(t_s, dtype=np.float64)
+        held = slice(0, self._n - self._base + 1)
+        if self._base and t.size and float(np.min(t)) < self._t[0]:
+            raise ValueError(
+                f"Ego: time {float(np.min(t))} s is before the steps kept (from {self._t[0]} s)"
+            )
+        return t, held
+
     def poses_at(self, t_s: FloatArray) -> FloatArray:
         """Robot poses ``(T, 3)`` at past times (linear in arc between steps)."""
-        n = self._n + 1
-        arc: FloatArray = np.interp(t_s, self._t[:n], self._arc[:n])
+        t, held = self._held(t_s)
+        arc: FloatArray = np.interp(t, self._t[held], self._arc[held])
         return self.spec.route.pose_at(arc)
 
     def speeds_at(self, t_s: FloatArray) -> FloatArray:
         """Speeds at past times (linear between steps)."""
-        n = self._n + 1
-        return np.interp(t_s, self._t[:n], self._speed[:n])
+        t, held = self._held(t_s)
+        return np.interp(t, self._t[held], self._speed[held])
 
     def log(self) -> dict[str, FloatArray]:
         """The history so far: time, arc, x, y, heading, speed and the command in force during
-        the step that ended at each time."""
-        n = self._n + 1
-        poses = self.spec.route.pose_at(self._arc[:n])
+        the step that ended at each time (every step, or a bounded ego's thinned steps, its
+        pinned steps and every step not yet final)."""
+        if self._log is None:
+            n = self._n + 1
+            t, arc, speed, cmd = self._t[:n], self._arc[:n], self._speed[:n], self._cmd[:n]
+        else:
+            _, rows = self._log.rows()
+            tail = [self._row(k) for k in range(self._final + 1, self._n + 1)]
+            table = np.concatenate([rows, np.array(tail).reshape(-1, 4)])
+            t, arc, speed, cmd = table.T
+        poses = self.spec.route.pose_at(arc)
         return {
-            "t_s": self._t[:n].copy(),
-            "arc_m": self._arc[:n].copy(),
+            "t_s": t.copy(),
+            "arc_m": arc.copy(),
             "x_m": poses[:, 0],
             "y_m": poses[:, 1],
             "heading_rad": poses[:, 2],
-            "speed_mps": self._speed[:n].copy(),
-            "command_mps": self._cmd[:n].copy(),
+            "speed_mps": speed.copy(),
+            "command_mps": cmd.copy(),
         }

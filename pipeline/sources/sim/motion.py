@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.frames import to_parent
+from pipeline.sources.sim.history import grid_window
 from pipeline.sources.sim.objects import (
     DOLLY_DRAWBAR_M,
     DOLLY_REAR_AXLE_X_M,
@@ -282,10 +283,17 @@ class Trajectory:
         )
 
     def at(self, t_s: FloatArray) -> dict[str, FloatArray]:
-        """Every column interpolated at times ``t_s`` (held constant outside the grid)."""
+        """Every column interpolated at times ``t_s`` (held constant outside the grid).
+
+        Only the grid points around the query times are read (:func:`grid_window`): the same
+        bits as interpolating over the whole grid, at a cost that does not grow with the
+        run's length (SR-RUN-5).
+        """
         t = np.asarray(t_s, dtype=np.float64)
+        lo, hi = grid_window(self.t_s, t)
+        grid = self.t_s[lo:hi]
         return {
-            name: np.interp(t, self.t_s, getattr(self, name))
+            name: np.interp(t, grid, getattr(self, name)[lo:hi])
             for name in self.__slots__
             if name != "t_s"
         }

@@ -34,7 +34,7 @@ from pipeline.sources.sim.objects import (
     reach_truck,
     uld_container,
 )
-from pipeline.sources.sim.simulation import Simulation
+from pipeline.sources.sim.simulation import FULL, Retention, Simulation
 from pipeline.sources.sim.truth import LabelRules
 from pipeline.sources.sim.world import SimObject, World
 
@@ -340,15 +340,16 @@ def make_simulation(
     seed: int | None = None,
     duration_s: float | None = None,
     lidar: LidarSpec | None = None,
+    retention: Retention = FULL,
 ) -> Simulation:
     """A ready-to-run simulation of scenario ``name`` (default: ``sim.scenario``) with the
-    configured scanner, ego robot and label rules."""
+    configured scanner, ego robot and label rules, keeping ``retention`` for its result."""
     sim = config.sim
     name = sim.scenario if name is None else name
     seed = sim.seed if seed is None else seed
     duration = sim.duration_s if duration_s is None else duration_s
     spec = build_scenario(name, seed, duration)
-    return simulation_for_spec(config, spec, name, seed, duration, lidar)
+    return simulation_for_spec(config, spec, name, seed, duration, lidar, retention)
 
 
 def simulation_for_spec(
@@ -358,6 +359,7 @@ def simulation_for_spec(
     seed: int,
     duration: float,
     lidar: LidarSpec | None = None,
+    retention: Retention = FULL,
 ) -> Simulation:
     """A ready-to-run simulation of an already built scenario (e.g. one that is not in
     :data:`SCENARIOS`), with the scanner noise and ego braking streams drawn from ``seed`` as
@@ -388,4 +390,5 @@ def simulation_for_spec(
         rules=LabelRules.from_config(sim),
         name=name,
         seed=seed,
+        retention=retention,
     )

@@ -7,6 +7,11 @@ along it the robot is, and optionally thermal detections of the simulated person
 arrives while the previous cycle still runs waits for it (``received_s`` is the later of the
 two); :meth:`SimSource.command` takes the runtime's speed at the decision time, and the robot
 follows it after its actuation latency (SR-RUN-1, SR-SIM-5).
+
+A run through the runtime may last hours, so the source puts its simulation on bounded
+retention (:data:`~pipeline.sources.sim.simulation.BOUNDED`: no frames kept, a thinned ego log
+and separation record) unless told otherwise: its memory and per-cycle cost stay flat over
+the run (SR-RUN-5), and its scans are the same bits as under full retention.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from pipeline.sources.sim.simulation import SimResult, Simulation
+from pipeline.sources.sim.simulation import BOUNDED, Retention, SimResult, Simulation
 from pipeline.sources.sim.thermal import thermal_from_truth
 from pipeline.types import Frame
 
@@ -28,11 +33,21 @@ class SimSource:
 
     ``thermal_rng``, when given, adds thermal detections of every simulated person to each
     frame (:func:`~pipeline.sources.sim.thermal.thermal_from_truth`, stamped with the scan).
+    ``retention`` (default bounded) is applied to ``sim``, which must not have started; None
+    leaves the simulation's own.
     """
 
     live = False
 
-    def __init__(self, sim: Simulation, thermal_rng: np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        sim: Simulation,
+        thermal_rng: np.random.Generator | None = None,
+        *,
+        retention: Retention | None = BOUNDED,
+    ) -> None:
+        if retention is not None and retention != sim.retention:
+            sim.retain(retention)
         self.sim = sim
         self.thermal_rng = thermal_rng
         self._busy_until_s = -math.inf
