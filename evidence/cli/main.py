@@ -20,6 +20,7 @@ from rich.text import Text
 from evidence.catalogue import load_catalogue
 from evidence.cli.audit import app as audit_app
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
+from evidence.cli.nav2 import app as nav2_app
 from evidence.cli.run import run_command
 from evidence.cli.sim import app as sim_app
 from evidence.cli.train import train_command
@@ -41,6 +42,7 @@ app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
 app.add_typer(sim_app, name="sim")
 app.add_typer(audit_app, name="audit")
+app.add_typer(nav2_app, name="nav2")
 app.command("train")(train_command)
 app.command("run")(run_command)
 

@@ -171,6 +171,8 @@ COMMANDS = (
     ("audit", "show"),
     ("audit", "tail"),
     ("audit", "replay"),
+    ("nav2", "check"),
+    ("nav2", "export"),
 )
 
 
