@@ -54,6 +54,23 @@ def _time(stamp_s: float, typestore: Any) -> Any:
     )
 
 
+def _transform(
+    store: Any, stamp_s: float, parent: str, child: str, x: float, y: float, yaw: float
+) -> Any:
+    """A ``geometry_msgs/TransformStamped`` from ``parent`` to ``child`` (planar)."""
+    t = store.types
+    return t["geometry_msgs/msg/TransformStamped"](
+        header=t["std_msgs/msg/Header"](stamp=_time(stamp_s, store), frame_id=parent),
+        child_frame_id=child,
+        transform=t["geometry_msgs/msg/Transform"](
+            translation=t["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=0.0),
+            rotation=t["geometry_msgs/msg/Quaternion"](
+                x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0)
+            ),
+        ),
+    )
+
+
 def write_ros2_bag(
     path: Path,
     scans: Sequence[Scan],
@@ -62,10 +79,14 @@ def write_ros2_bag(
     storage: Literal["sqlite3", "mcap"] = "sqlite3",
     scan_topic: str = "/scan",
     odom_topic: str = "/odom",
+    odometry_as: Literal["odometry", "tf"] = "odometry",
     epoch_s: float = 1.7e9,
 ) -> Path:
     """A ROS 2 bag at ``path`` (a folder) holding the scans and the odometry, every stamp
-    shifted by ``epoch_s`` as a robot's clock would be."""
+    shifted by ``epoch_s`` as a robot's clock would be. ``odometry_as="tf"`` writes the
+    odometry as ``tf2_msgs/TFMessage`` on ``odom_topic`` instead, each message holding the
+    ``odom`` to ``base_footprint`` transform beside two that must be ignored (``map`` to
+    ``odom`` and ``base_footprint`` to ``base_link``)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -108,6 +129,14 @@ def write_ros2_bag(
                 covariance=np.zeros(36),
             ),
         )
+        if odometry_as == "tf":
+            msg = t["tf2_msgs/msg/TFMessage"](
+                transforms=[
+                    _transform(store, stamp + epoch_s, "map", "odom", 1.0, -2.0, 0.3),
+                    _transform(store, stamp + epoch_s, "odom", "base_footprint", x, y, yaw),
+                    _transform(store, stamp + epoch_s, "base_footprint", "base_link", 0, 0, 0),
+                ]
+            )
         messages.append((stamp + epoch_s, odom_topic, msg))
     with Writer(path, version=9, storage_plugin=plugin) as writer:
         connections = {
@@ -116,9 +145,8 @@ def write_ros2_bag(
             ),
         }
         if odometry is not None:
-            connections[odom_topic] = writer.add_connection(
-                odom_topic, "nav_msgs/msg/Odometry", typestore=store
-            )
+            msgtype = "tf2_msgs/msg/TFMessage" if odometry_as == "tf" else "nav_msgs/msg/Odometry"
+            connections[odom_topic] = writer.add_connection(odom_topic, msgtype, typestore=store)
         for stamp, topic, msg in sorted(messages, key=lambda m: m[0]):
             data = store.serialize_cdr(msg, msg.__msgtype__)
             writer.write(connections[topic], round(stamp * 1e9), data)

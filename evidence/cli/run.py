@@ -69,7 +69,11 @@ def run_command(
     ] = None,
     odom_topic: Annotated[
         str | None,
-        typer.Option(help="--log bag: the nav_msgs/Odometry topic giving the robot's pose."),
+        typer.Option(
+            help="--log bag: the nav_msgs/Odometry or tf2_msgs/TFMessage (odom to "
+            "base_footprint or base_link) topic giving the robot's pose (default: the only "
+            "Odometry topic, else /tf, else none: the robot stands)."
+        ),
     ] = None,
     restamp: Annotated[
         float | None,
@@ -300,6 +304,7 @@ def _report(cfg: SafecaseConfig, summary: RunSummary, log: LogSource | None) -> 
     if log is not None:
         skipped = ", ".join(f"{k} {v}" for k, v in log.skipped.items() if v) or "none"
         table.add_row("scans skipped", skipped)
+        table.add_row("odometry", log.odometry_from or "none (the robot stands)")
         rate = log.stamps.restamp_hz
         table.add_row("stamps", "as recorded" if rate is None else f"re-stamped at {rate:g} Hz")
     if sim is not None:

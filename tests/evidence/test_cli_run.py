@@ -53,6 +53,21 @@ def test_run_log_replays_a_ros2_bag_with_odometry_written_by_rosbags(tmp_path: P
 
 
 @pytest.mark.requirement("SR-RUN-4", kind="example", code=CODE)
+def test_run_log_follows_tf_odometry_found_by_type(tmp_path: Path) -> None:
+    driven = drive(default_config(), "crossing_pedestrian", 4, 2.0)
+    bag = write_ros2_bag(
+        tmp_path / "tf", driven.scans, driven.odometry, odom_topic="/tf", odometry_as="tf"
+    )
+    audit = tmp_path / "tf.jsonl"
+    done = run_safecase("run", "--log", str(bag), "--audit", str(audit), cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "odometry" in done.stdout
+    assert "/tf" in done.stdout
+    assert "outside the odometry 1" in done.stdout
+    _replays(audit, tmp_path, len(driven.scans) - 1)
+
+
+@pytest.mark.requirement("SR-RUN-4", kind="example", code=CODE)
 def test_run_log_replays_a_carmen_log_and_refuses_bad_stamps_unless_restamped(
     tmp_path: Path,
 ) -> None:

@@ -3,8 +3,12 @@
 One reader for every bag format (:class:`rosbags.highlevel.AnyReader`), so a log recorded on
 ROS 1 or ROS 2 replays the same way. Scans come from one ``sensor_msgs/LaserScan`` topic:
 angles from ``angle_min + i * angle_increment``, ``beam_period_s`` from ``time_increment``,
-the stamp from the message header. Odometry comes from one ``nav_msgs/Odometry`` topic: the
-pose's position and the yaw of its orientation quaternion, stamped by its header. A bag that
+the stamp from the message header. Odometry comes from one ``nav_msgs/Odometry`` topic (the
+pose's position and the yaw of its orientation quaternion, stamped by its header) or from a
+``tf2_msgs/TFMessage`` topic (``/tf``): the transforms from ``odom`` to the robot's base frame
+(``base_footprint``, else ``base_link``), each stamped by its own header; frame names are
+compared without a leading slash (ROS 1 writes ``/odom``). :func:`find_odometry` picks the
+source a bag offers when none is named. A bag that
 rosbags cannot open or decode raises :class:`~pipeline.sources.logs.text.LogFormatError` naming
 the file and what went wrong, never rosbags' own error.
 """
@@ -23,8 +27,12 @@ from pipeline.sources.logs.text import LogFormatError
 from pipeline.types import FloatArray, Scan
 
 __all__ = [
+    "BASE_FRAMES",
     "LASERSCAN",
     "ODOMETRY",
+    "ODOM_FRAME",
+    "TFMESSAGE",
+    "find_odometry",
     "is_bag",
     "laserscan_topics",
     "odometry_topics",
@@ -34,6 +42,9 @@ __all__ = [
 
 LASERSCAN = "sensor_msgs/msg/LaserScan"
 ODOMETRY = "nav_msgs/msg/Odometry"
+TFMESSAGE = "tf2_msgs/msg/TFMessage"
+ODOM_FRAME = "odom"
+BASE_FRAMES = ("base_footprint", "base_link")  # the robot's planar pose, in this preference
 
 
 def is_bag(path: Path) -> bool:
@@ -73,6 +84,34 @@ def laserscan_topics(path: Path | str) -> list[str]:
 def odometry_topics(path: Path | str) -> list[str]:
     """The topics of a bag that carry ``nav_msgs/Odometry`` messages."""
     return _topics(Path(path), ODOMETRY)
+
+
+def tf_topics(path: Path | str) -> list[str]:
+    """The topics of a bag that carry ``tf2_msgs/TFMessage`` messages."""
+    return _topics(Path(path), TFMESSAGE)
+
+
+def _topic_types(path: Path) -> dict[str, str]:
+    with _reader(path) as reader:
+        return {c.topic: c.msgtype for c in reader.connections}
+
+
+def find_odometry(path: Path | str) -> str | None:
+    """The odometry topic of a bag when none is named: its only ``nav_msgs/Odometry`` topic,
+    else its ``/tf`` topic when that holds ``odom`` to base-frame transforms, else None. Two
+    Odometry topics are ambiguous: a :class:`LogFormatError` asks for one to be named."""
+    file = Path(path)
+    odometry = odometry_topics(file)
+    if len(odometry) > 1:
+        raise LogFormatError(
+            f"{file}: {len(odometry)} Odometry topics {odometry}; name one with --odom-topic"
+        )
+    if odometry:
+        return odometry[0]
+    for topic in tf_topics(file):
+        if read_tf_odometry(file, topic).shape[0] >= 2:
+            return topic
+    return None
 
 
 def _choose(path: Path, topics: list[str], topic: str | None, what: str) -> str:
@@ -128,14 +167,39 @@ def read_bag(path: Path | str, topic: str | None = None) -> Iterator[Scan]:
         )
 
 
+def _yaw(q: Any) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
 def read_odometry(path: Path | str, topic: str | None = None) -> FloatArray:
     """Odometry of a bag as an (n, 4) array ``[stamp_s, x_m, y_m, yaw_rad]``, in recording
-    order (the only Odometry topic when ``topic`` is None)."""
+    order: from ``topic`` (an Odometry or a TFMessage topic), or the only Odometry topic when
+    ``topic`` is None."""
     file = Path(path)
+    if topic is not None and _topic_types(file).get(topic) == TFMESSAGE:
+        return read_tf_odometry(file, topic)
     rows = []
     for _, msg in _messages(file, ODOMETRY, topic, "Odometry"):
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-        rows.append((_stamp_s(msg), float(p.x), float(p.y), yaw))
+        p = msg.pose.pose.position
+        rows.append((_stamp_s(msg), float(p.x), float(p.y), _yaw(msg.pose.pose.orientation)))
     out: FloatArray = np.array(rows, dtype=np.float64).reshape(-1, 4)
+    return out
+
+
+def read_tf_odometry(path: Path | str, topic: str = "/tf") -> FloatArray:
+    """The robot's pose from the transforms of a TFMessage topic, as :func:`read_odometry`:
+    ``odom`` to ``base_footprint`` when the topic has any, else ``odom`` to ``base_link``.
+    A TF topic without either gives an empty array."""
+    file = Path(path)
+    rows: dict[str, list[tuple[float, float, float, float]]] = {b: [] for b in BASE_FRAMES}
+    for _, msg in _messages(file, TFMESSAGE, topic, "TFMessage"):
+        for tf in msg.transforms:
+            child = tf.child_frame_id.lstrip("/")
+            if tf.header.frame_id.lstrip("/") == ODOM_FRAME and child in rows:
+                p = tf.transform.translation
+                rows[child].append(
+                    (_stamp_s(tf), float(p.x), float(p.y), _yaw(tf.transform.rotation))
+                )
+    chosen = next((rows[b] for b in BASE_FRAMES if rows[b]), [])
+    out: FloatArray = np.array(chosen, dtype=np.float64).reshape(-1, 4)
     return out

@@ -2,7 +2,8 @@
 
 :class:`LogSource` reads a ROS 1 bag, a ROS 2 bag (folder, sqlite3 or MCAP), a bare MCAP file,
 a CARMEN log or a BreezySLAM log, chosen by the path. Odometry, where the log has it (a
-``nav_msgs/Odometry`` topic of a bag, the ``odom_*`` fields of CARMEN's FLASER lines), gives
+``nav_msgs/Odometry`` or ``/tf`` topic of a bag, the ``odom_*`` fields of CARMEN's FLASER
+lines), gives
 each frame the robot's pose at the scan's stamp, interpolated linearly between odometry
 messages (yaw unwrapped); scans outside the odometry's time span are skipped and counted, never
 given a guessed pose. Stamps follow :mod:`pipeline.sources.logs.stamps`: checked, or re-stamped
@@ -18,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.sources.logs.bags import is_bag, read_bag, read_odometry
+from pipeline.sources.logs.bags import find_odometry, is_bag, read_bag, read_odometry
 from pipeline.sources.logs.stamps import StampRule
 from pipeline.sources.logs.text import (
     LogFormatError,
@@ -72,7 +73,10 @@ class LogSource:
     """Frames of a recorded log (module docstring).
 
     ``scan_topic`` and ``odom_topic`` choose a bag's topics (the only LaserScan topic by
-    default; no odometry unless ``odom_topic`` is given, or ``odometry`` is True for CARMEN).
+    default; an Odometry or a TFMessage topic). Without ``odom_topic`` there is no odometry
+    unless ``odometry`` is True: then a bag's own (:func:`~pipeline.sources.logs.bags.
+    find_odometry`: its only Odometry topic, else ``/tf``) and a CARMEN log's are used.
+    ``odometry_from`` names what was used once :meth:`check` has run (None: no odometry).
     ``stamps`` is the stamp rule. ``skipped`` counts scans left out, by reason.
     """
 
@@ -82,6 +86,7 @@ class LogSource:
     stamps: StampRule = field(default_factory=StampRule)
     odometry: bool = False
     skipped: dict[str, int] = field(default_factory=dict)
+    odometry_from: str | None = field(default=None, init=False)
     live: bool = field(default=False, init=False)
 
     def __post_init__(self) -> None:
@@ -108,9 +113,14 @@ class LogSource:
 
     def _poses(self, stamps_s: FloatArray) -> FloatArray | None:
         """Odometry poses at the recorded stamps, or None without odometry."""
-        if self.kind == "bag" and self.odom_topic is not None:
-            return poses_at(read_odometry(self.path, self.odom_topic), stamps_s)
+        topic = self.odom_topic
+        if self.kind == "bag" and topic is None and self.odometry:
+            topic = find_odometry(self.path)
+        if self.kind == "bag" and topic is not None:
+            self.odometry_from = topic
+            return poses_at(read_odometry(self.path, topic), stamps_s)
         if self.kind == "carmen" and self.odometry:
+            self.odometry_from = "FLASER odometry"
             odom = read_carmen_odometry(self.path)
             return odom[:, 1:4]  # one row per scan, same order
         return None

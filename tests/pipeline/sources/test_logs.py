@@ -10,7 +10,13 @@ import numpy as np
 import pytest
 
 from pipeline.config import default_config
-from pipeline.sources.logs.bags import laserscan_topics, odometry_topics, read_bag
+from pipeline.sources.logs.bags import (
+    find_odometry,
+    laserscan_topics,
+    odometry_topics,
+    read_bag,
+    read_odometry,
+)
 from pipeline.sources.logs.source import LogSource, log_kind, poses_at
 from pipeline.sources.logs.stamps import LogStampError, StampRule, check_stamps
 from pipeline.sources.logs.text import LogFormatError, read_breezyslam, read_carmen
@@ -100,6 +106,55 @@ def test_a_ros2_bag_gives_scans_with_interpolated_odometry_poses(
     if storage == "mcap":  # a bare MCAP file reads the same as its folder
         (mcap,) = bag.glob("*.mcap")
         assert len(list(LogSource(mcap, odom_topic="/odom").frames())) == len(frames)
+
+
+@pytest.mark.requirement("SR-TRK-5", kind="example", code=CODE)
+def test_tf_odometry_gives_the_same_poses_as_the_odometry_topic(
+    tmp_path: Path, driven: Drive
+) -> None:
+    odom = write_ros2_bag(tmp_path / "odom", driven.scans, driven.odometry, storage="mcap")
+    tf = write_ros2_bag(
+        tmp_path / "tf", driven.scans, driven.odometry, odom_topic="/tf", odometry_as="tf"
+    )
+    # odom -> base_footprint only: the map -> odom and base_footprint -> base_link transforms
+    # beside it in every message are not the robot's pose.
+    np.testing.assert_array_equal(read_odometry(tf, "/tf"), read_odometry(odom, "/odom"))
+    assert find_odometry(odom) == "/odom"
+    assert find_odometry(tf) == "/tf"
+    assert find_odometry(POSITIVE) is None  # a bag without odometry: the robot stands
+    auto = LogSource(tf, odometry=True)  # what safecase run --log does without --odom-topic
+    named = LogSource(odom, odom_topic="/odom")
+    poses = [f.pose for f in auto.frames()]
+    assert auto.odometry_from == "/tf"
+    assert poses == [f.pose for f in named.frames()]
+    assert None not in poses
+    assert all(f.pose is None for f in LogSource(tf).frames())  # asked for none: none
+
+
+def test_two_odometry_topics_must_be_named(tmp_path: Path, driven: Drive) -> None:
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    one = write_ros2_bag(tmp_path / "one", driven.scans[:3], driven.odometry[:8])
+    two = tmp_path / "two"
+    # The same bag with its odometry recorded twice, on /odom and /wheel_odom.
+    with Reader(one) as reader, Writer(two, version=9) as writer:
+        out = {}
+        for c in reader.connections:
+            out[c.topic] = writer.add_connection(c.topic, c.msgtype, typestore=store)
+        out["/wheel_odom"] = writer.add_connection(
+            "/wheel_odom", out["/odom"].msgtype, typestore=store
+        )
+        for c, stamp, raw in reader.messages():
+            writer.write(out[c.topic], stamp, raw)
+            if c.topic == "/odom":
+                writer.write(out["/wheel_odom"], stamp, raw)
+    with pytest.raises(LogFormatError, match=r"2 Odometry topics .*name one with --odom-topic"):
+        find_odometry(two)
+    with pytest.raises(LogFormatError, match="2 Odometry topics"):
+        LogSource(two, odometry=True).check()
+    assert LogSource(two, odom_topic="/wheel_odom").check()[1] is not None
 
 
 def test_odometry_interpolates_unwrapped_yaw_and_leaves_nan_outside() -> None:
