@@ -34,6 +34,8 @@ from pipeline.sources.sim.simulation import SimResult, Simulation
 from pipeline.sources.sim.source import SimSource
 from pipeline.types import FloatArray, Frame
 from safety.audit.log import AuditWriter, BackgroundAuditWriter
+from safety.foxglove import McapRecorder
+from safety.foxglove_scene import scene_of
 from safety.geometry.path import PathAhead
 from safety.model.stopping import StoppingParams
 from safety.runtime import CycleInput, CycleOutput, Runtime
@@ -178,8 +180,11 @@ def run_audited(
     max_scans: int | None = None,
     duration_s: float | None = None,
     measured_clock: bool = False,
+    recording: Path | None = None,
 ) -> Iterator[CycleOutput]:
-    """:func:`run` with one audit record per cycle in ``audit_path`` (none when None).
+    """:func:`run` with one audit record per cycle in ``audit_path`` (none when None) and,
+    with ``recording``, every cycle in that MCAP file for Foxglove (:mod:`safety.foxglove`,
+    SR-RUN-7; an existing file is refused before any cycle runs).
 
     With ``audit.sign_head`` the head anchor is signed with the key of
     :func:`safety.audit.log.signing_key_for` (SR-AUD-1). That key is loaded here, when this
@@ -211,14 +216,18 @@ def run_audited(
                     rt.writer = background
                 else:
                     rt.writer = writer
-            yield from run(
+            recorder = None if recording is None else stack.enter_context(McapRecorder(recording))
+            for out in run(
                 config,
                 source,
                 rt,
                 max_scans=max_scans,
                 duration_s=duration_s,
                 measured_clock=measured_clock,
-            )
+            ):
+                if recorder is not None:
+                    recorder.write(scene_of(out, config))
+                yield out
 
     return cycles()
 

@@ -55,7 +55,7 @@ from pipeline.types import (
     ThermalDetections,
 )
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
-from safety.geometry.costmap import CostmapBuilder
+from safety.geometry.costmap import Costmap, CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
 from safety.geometry.path import PathAhead, PathClearance, PathDistances
 from safety.geometry.swept import SweptPathChecker
@@ -74,7 +74,7 @@ from safety.obstacles import (
     still_zones,
 )
 
-__all__ = ["STAGES", "CycleInput", "CycleInputError", "CycleOutput", "Runtime"]
+__all__ = ["STAGES", "CycleDetail", "CycleInput", "CycleInputError", "CycleOutput", "Runtime"]
 
 # The perception chain's stages, then the safety side's (the decision is timed as "decide").
 STAGES = (*PERCEPTION_STAGES, "envelopes", "path", "planner", "costmap")
@@ -133,10 +133,21 @@ class CycleInput:
 
 
 @dataclass(frozen=True, slots=True)
+class CycleDetail:
+    """What a cycle read and built, for a recording of the run (:mod:`safety.foxglove`): its
+    input, the perception chain's result and the costmap (each None when the cycle stopped
+    before it, or the costmap is off)."""
+
+    inp: CycleInput
+    perceived: Perceived | None
+    costmap: Costmap | None
+
+
+@dataclass(frozen=True, slots=True)
 class CycleOutput:
     """One cycle's result: the command, the decision, what was logged, per-stage wall-clock
     times and the thread's CPU time [s], the envelopes (robot frame; None when the cycle
-    stopped before them) and the path distances."""
+    stopped before them), the path distances and the cycle's :class:`CycleDetail`."""
 
     command: Command
     decision: Decision
@@ -145,6 +156,7 @@ class CycleOutput:
     cpu_s: float
     envelopes: Envelopes | None
     distances: PathDistances | None
+    detail: CycleDetail | None = None
 
 
 class Runtime:
@@ -199,6 +211,7 @@ class Runtime:
         over_cap: list[tuple[str, int]] = []
         partial = Partial()
         safety_side: _SafetySide | None = None
+        perceived: Perceived | None = None
         try:
             perceived = self.perception.perceive(
                 inp.frame(), now_s=lambda: inp.now_s + elapsed_s(), watch=watch
@@ -274,6 +287,7 @@ class Runtime:
             cpu,
             None if safety_side is None else safety_side.envelopes,
             None if safety_side is None else safety_side.distances,
+            CycleDetail(inp, perceived, None if safety_side is None else safety_side.grid),
         )
 
     def _safety_side(
@@ -321,7 +335,7 @@ class Runtime:
             }
             all_env = stack_polygons(env.polygons, ped_env)
             excess = max(all_env.n - config.geometry.max_obstacles, 0)
-        planner_part = costmap_part = None
+        planner_part = costmap_part = grid = None
         with watch.stage("planner"):
             if config.runtime.planner_check and not excess:
                 report = self.planner.check(
@@ -343,7 +357,7 @@ class Runtime:
         inputs = governor_rows(
             inp.now_s, env, fused, free, ped_free, dist, self.params, config.runtime.loose_points
         )
-        return _SafetySide(inputs, env, dist, excess, path_part, planner_part, costmap_part)
+        return _SafetySide(inputs, env, dist, excess, path_part, planner_part, costmap_part, grid)
 
 
 @dataclass(frozen=True)
@@ -357,6 +371,7 @@ class _SafetySide:
     path: dict[str, Any]
     planner: dict[str, Any] | None
     costmap: dict[str, Any] | None
+    grid: Costmap | None
 
 
 def _fold_parts(

@@ -20,6 +20,7 @@ from rich.text import Text
 from evidence.catalogue import load_catalogue
 from evidence.cli.audit import app as audit_app
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
+from evidence.cli.mcap import app as mcap_app
 from evidence.cli.nav2 import app as nav2_app
 from evidence.cli.run import run_command
 from evidence.cli.sim import app as sim_app
@@ -43,6 +44,7 @@ app.add_typer(config_app, name="config")
 app.add_typer(sim_app, name="sim")
 app.add_typer(audit_app, name="audit")
 app.add_typer(nav2_app, name="nav2")
+app.add_typer(mcap_app, name="mcap")
 app.command("train")(train_command)
 app.command("run")(run_command)
 

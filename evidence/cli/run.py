@@ -89,6 +89,13 @@ def run_command(
     plot: Annotated[
         bool, typer.Option(help="Simulator: write a PNG of speeds, commands and separations.")
     ] = True,
+    mcap: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also record every cycle (scan, clusters, tracks, envelopes, path, costmap, "
+            "command, verdicts) in this new MCAP file for Foxglove (docs/foxglove.md)."
+        ),
+    ] = None,
     measured_clock: Annotated[
         bool,
         typer.Option(help="Charge each cycle its measured time (not reproducible)."),
@@ -99,7 +106,8 @@ def run_command(
     clearance -> governor -> PROCEED / SLOW / STOP, one audit record per cycle.
 
     Examples: safecase run --scenario crossing_pedestrian --seed 3;
-    safecase run --emulate rplidar --scans 50; safecase run --log walk.bag --odom-topic /odom
+    safecase run --emulate rplidar --scans 50; safecase run --log walk.bag --odom-topic /odom;
+    safecase run --scenario forklift_pass_by --mcap pass.mcap
 
     Exit codes: 0 done, or stopped by Ctrl-C or SIGTERM (the audit log is closed either way);
     1 the simulated robot touched something while moving; 2 bad options, configuration, log,
@@ -121,28 +129,33 @@ def run_command(
         fail(f"--scenario {name!r}: unknown; known: {', '.join(SCENARIOS)}")
     if emulate is not None and emulate not in EMULATORS:
         fail(f"--emulate {emulate!r}: allowed: {', '.join(EMULATORS)}")
+    if mcap is not None and (mcap.exists() or not mcap.parent.is_dir()):
+        why = "exists" if mcap.exists() else f"no folder {mcap.parent}"
+        fail(f"--mcap {mcap}: {why}; allowed: a new file in an existing folder")
     log_dir = Path(cfg.audit.log_dir)
     with _stop_on_sigterm():
         try:
             if device is not None or emulate is not None:
                 source = _device_source(cfg, device, emulate, name, seed, scans)
                 target = audit or log_dir / f"device-{stamp()}.jsonl"
-                _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration)
+                _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration, mcap)
                 return
             if log is not None:
                 rule = StampRule(restamp_hz=restamp)
                 source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
                 source.check()  # a log that cannot be replayed leaves no audit log behind
                 target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
-                summary = _run_recorded(cfg, source, target, scans, duration, measured_clock)
+                summary = _run_recorded(cfg, source, target, scans, duration, measured_clock, mcap)
                 _report(cfg, summary, source)
+                _recorded(mcap)
                 return
             sim = make_simulation(cfg, name, seed, duration)
             target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
-            summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock)
+            summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock, mcap)
         except (SafecaseError, ValueError, OSError) as exc:
             fail(str(exc))
         _report(cfg, summary, None)
+        _recorded(mcap)
         if plot and summary.sim is not None:
             from safety.run_plot import run_figure
 
@@ -152,6 +165,11 @@ def run_command(
         if summary.moving_contacts:
             out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
             raise typer.Exit(1)
+
+
+def _recorded(mcap: Path | None) -> None:
+    if mcap is not None:
+        out.print(f"recording: {mcap} (open it in Foxglove)", highlight=False)
 
 
 def _generator(outputs: Iterator[CycleOutput]) -> Generator[CycleOutput, None, None]:
@@ -223,11 +241,19 @@ def _run_live(
     target: Path,
     max_scans: int,
     duration_s: float | None,
+    mcap: Path | None,
 ) -> None:
     """A live source: one line per cycle, then the command mix (also when stopped)."""
     summary = RunSummary(source.name, audit_path=target)
     outputs = _generator(
-        run_audited(cfg, source, audit_path=target, max_scans=max_scans, duration_s=duration_s)
+        run_audited(
+            cfg,
+            source,
+            audit_path=target,
+            max_scans=max_scans,
+            duration_s=duration_s,
+            recording=mcap,
+        )
     )
     try:
         for o in outputs:
@@ -247,6 +273,7 @@ def _run_live(
         highlight=False,
     )
     out.print(f"audit log: {target} (verify: safecase audit verify {target})", highlight=False)
+    _recorded(mcap)
 
 
 def _run_recorded(
@@ -256,6 +283,7 @@ def _run_recorded(
     max_scans: int | None,
     duration_s: float | None,
     measured_clock: bool,
+    mcap: Path | None,
 ) -> RunSummary:
     """The simulator or a log, with a progress bar; the summary holds the simulator's verdict."""
     summary = RunSummary(source.name, audit_path=target)
@@ -278,6 +306,7 @@ def _run_recorded(
                 max_scans=max_scans,
                 duration_s=duration_s,
                 measured_clock=measured_clock,
+                recording=mcap,
             )
         )
         try:

@@ -173,6 +173,8 @@ COMMANDS = (
     ("audit", "replay"),
     ("nav2", "check"),
     ("nav2", "export"),
+    ("mcap", "show"),
+    ("mcap", "check"),
 )
 
 
