@@ -1,33 +1,37 @@
 """The safety requirements catalogue (``safety/requirements.toml``), loaded and validated.
 
-Requirement IDs are stable (``SR-<FAMILY>-<n>``); each names the kinds of evidence that may
-support it and the minimum count of each kind that must be present and passing before it can
-be SATISFIED (requirement SR-EVD-2).
+Requirement IDs are stable (``SR-<FAMILY>-<n>`` here); each names the kinds of evidence that
+may support it and the minimum count of each kind that must be present and passing before it
+can be SATISFIED (requirement SR-EVD-2). Another project's catalogue may use its own ID pattern
+(a regular expression every ID must match whole; its group ``family``, if it has one, must be
+the requirement's family), set with the ``safecase_id_pattern`` ini option (SR-EVD-7).
 """
 
 from __future__ import annotations
 
 import re
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args
 
+from pipeline.compat import tomllib
 from pipeline.errors import RequirementsError
 
 EvidenceKind = Literal["proof", "property", "cross-check", "measurement", "campaign", "example"]
 EVIDENCE_KINDS: tuple[str, ...] = get_args(EvidenceKind)
 Status = Literal["planned", "claimed", "unmet"]
 STATUSES: tuple[str, ...] = get_args(Status)
-_ID = re.compile(r"^SR-[A-Z]+-[0-9]+$")
+DEFAULT_ID_PATTERN = r"SR-(?P<family>[A-Z]+)-[0-9]+"
 
 __all__ = [
+    "DEFAULT_ID_PATTERN",
     "EVIDENCE_KINDS",
     "STATUSES",
     "Catalogue",
     "EvidenceKind",
     "Requirement",
+    "compile_id_pattern",
     "default_catalogue_path",
     "load_catalogue",
 ]
@@ -54,11 +58,12 @@ class Requirement:
 
 @dataclass(frozen=True, slots=True)
 class Catalogue:
-    """All requirements, in file order, with their families."""
+    """All requirements, in file order, with their families and the ID pattern they match."""
 
     path: str
     families: tuple[tuple[str, str], ...]
     requirements: tuple[Requirement, ...]
+    id_pattern: str = DEFAULT_ID_PATTERN
 
     def __contains__(self, req_id: object) -> bool:
         return any(r.id == req_id for r in self.requirements)
@@ -83,6 +88,16 @@ def default_catalogue_path() -> Path:
     return Path(str(resources.files("safety").joinpath("requirements.toml")))
 
 
+def compile_id_pattern(pattern: str) -> re.Pattern[str]:
+    """The compiled ID pattern; RequirementsError when it is not a regular expression."""
+    try:
+        return re.compile(pattern)
+    except re.error as exc:
+        raise RequirementsError(
+            f"requirement ID pattern {pattern!r} is not a regular expression: {exc}"
+        ) from None
+
+
 def _need(entry: dict[str, Any], key: str, kind: type, where: str) -> Any:
     if key not in entry:
         raise RequirementsError(f"{where}: missing key {key!r}")
@@ -92,15 +107,20 @@ def _need(entry: dict[str, Any], key: str, kind: type, where: str) -> Any:
     return value
 
 
-def _parse_requirement(entry: dict[str, Any], where: str, families: dict[str, str]) -> Requirement:
+def _parse_requirement(
+    entry: dict[str, Any], where: str, families: dict[str, str], pattern: re.Pattern[str]
+) -> Requirement:
     req_id = _need(entry, "id", str, where)
     where = f"{where} ({req_id})"
-    if not _ID.match(req_id):
-        raise RequirementsError(f"{where}: id {req_id!r} must look like SR-FAMILY-<number>")
+    match = pattern.fullmatch(req_id)
+    if match is None:
+        raise RequirementsError(
+            f"{where}: id {req_id!r} does not match the ID pattern {pattern.pattern!r}"
+        )
     family = _need(entry, "family", str, where)
     if family not in families:
         raise RequirementsError(f"{where}: family {family!r} is not one of {', '.join(families)}")
-    if req_id.split("-")[1] != family:
+    if "family" in pattern.groupindex and match["family"] != family:
         raise RequirementsError(f"{where}: id {req_id!r} must carry its family {family!r}")
     status = _need(entry, "status", str, where)
     if status not in STATUSES:
@@ -152,9 +172,11 @@ def _parse_requirement(entry: dict[str, Any], where: str, families: dict[str, st
     )
 
 
-def load_catalogue(path: Path | str | None = None) -> Catalogue:
-    """Load and validate a catalogue (default: the packaged ``safety/requirements.toml``)."""
+def load_catalogue(path: Path | str | None = None, id_pattern: str | None = None) -> Catalogue:
+    """Load and validate a catalogue (default: the packaged ``safety/requirements.toml``) whose
+    IDs match ``id_pattern`` (default :data:`DEFAULT_ID_PATTERN`, ``SR-<FAMILY>-<n>``)."""
     file = Path(path) if path is not None else default_catalogue_path()
+    pattern = compile_id_pattern(id_pattern or DEFAULT_ID_PATTERN)
     try:
         data = tomllib.loads(file.read_text(encoding="utf-8"))
     except OSError as exc:
@@ -172,7 +194,7 @@ def load_catalogue(path: Path | str | None = None) -> Catalogue:
     if not isinstance(entries, list):
         raise RequirementsError(f"{file}: [[requirement]] must be an array of tables")
     requirements = [
-        _parse_requirement(entry, f"{file}: requirement #{i + 1}", families)
+        _parse_requirement(entry, f"{file}: requirement #{i + 1}", families, pattern)
         for i, entry in enumerate(entries)
     ]
     seen: set[str] = set()
@@ -184,4 +206,5 @@ def load_catalogue(path: Path | str | None = None) -> Catalogue:
         path=str(file),
         families=tuple((str(k), str(v)) for k, v in families.items()),
         requirements=tuple(requirements),
+        id_pattern=pattern.pattern,
     )

@@ -1,55 +1,59 @@
 """The safecase pytest plugin: requirement markers, evidence capture, the bundle (SR-EVD-*).
 
-Registered through the ``pytest11`` entry point, so every pytest run in safecase's virtual
-environment has it. It is inert unless asked for output:
+Registered through the ``pytest11`` entry point, so pytest loads it wherever safecase is
+installed; it acts only for a project that asks (evidence.plugin_settings, docs/plugin.md):
+naming a requirements catalogue (ini ``safecase_catalogue`` or ``--safecase-requirements``)
+activates it. Inactive, it only registers the ``requirement`` marker (SR-EVD-7). Active:
 
 * ``@pytest.mark.requirement("SR-STOP-1", kind="proof", code=["safety/model/stopping.py"])`` links a
-  test to requirements; an unknown ID fails the collection of that test's module;
+  test to requirements; an ID not in the catalogue fails the collection of that test's module;
 * the session fixture ``evidence`` (or :func:`evidence.record.current`) attaches details;
 * Hypothesis statistics, pytest-benchmark results and failures are captured per test;
 * ``--safecase-out DIR`` writes evidence.json, report.html, report.md, junit.xml and the
-  signed manifest at the end of the session;
+  signed manifest at the end of the session, with the provenance of the project under test
+  (SR-EVD-8); safecase's own configuration and model only when asked (``safecase_runtime``);
 * ``--safecase-enforce`` fails the session when a claimed requirement is not SATISFIED.
+
+Safecase's runtime (configuration, classifier, safety case) is imported only when used, so the
+plugin stays light in another project's test run.
 """
 
 from __future__ import annotations
 
 import hashlib
-import re
 import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from hypothesis import settings as hypothesis_settings
 from hypothesis.statistics import collector
 
 from evidence.catalogue import EVIDENCE_KINDS, Catalogue, load_catalogue
-from evidence.environment import collect_environment, git_state
-from evidence.manifest import check_key_outside
-from evidence.model import Bundle, EvidenceItem, Outcome, compute_verdicts
+from evidence.environment import collect_environment, git_state, project_provenance
+from evidence.plugin_capture import benchmark_detail, build_item, summarise_stats
+from evidence.plugin_settings import PluginSettings, add_options, resolve_settings
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
-from evidence.report import write_bundle
-from evidence.safety_case import SafetyCase, load_safety_case
-from pipeline.classify.model import model_provenance
-from pipeline.config import SafecaseConfig, config_hash, load_config
-from pipeline.errors import ConfigError, RequirementsError, SafecaseError
-from safety.audit.keys import load_or_create_key
+from pipeline.compat import UTC
+from pipeline.errors import ConfigError, EvidenceError, RequirementsError, SafecaseError
+
+if TYPE_CHECKING:
+    from evidence.model import Bundle, EvidenceItem
+    from evidence.safety_case import SafetyCase
+    from pipeline.config import SafecaseConfig
 
 register_profiles()
-
-_MAX_TEXT = 20_000
 
 
 @dataclass
 class _State:
+    settings: PluginSettings
     catalogue: Catalogue
-    config: SafecaseConfig
-    config_path: str | None
+    project: dict[str, Any]
     safety_case: SafetyCase | None = None
     started: float = field(default_factory=time.time)
     items: dict[str, EvidenceItem] = field(default_factory=dict)
@@ -62,49 +66,27 @@ class _State:
 
 
 STATE = pytest.StashKey[_State]()
+_RUNTIME_CONFIG = pytest.StashKey["SafecaseConfig"]()
 _PREVIOUS_PROFILE = pytest.StashKey[tuple[str, str]]()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    group = parser.getgroup("safecase", "safecase certification evidence")
-    group.addoption(
-        "--safecase-out",
-        metavar="DIR",
-        default=None,
-        help="write the evidence bundle (evidence.json, report.html, report.md, "
-        "junit.xml, signed manifest) into DIR",
-    )
-    group.addoption(
-        "--safecase-config",
-        metavar="FILE",
-        default=None,
-        help="configuration TOML used by the tests (default: built-in defaults)",
-    )
-    group.addoption(
-        "--safecase-requirements",
-        metavar="FILE",
-        default=None,
-        help="requirements catalogue (default: the packaged safety/requirements.toml)",
-    )
-    group.addoption(
-        "--safecase-hazards",
-        metavar="FILE",
-        default=None,
-        help="hazard log and assumptions (default: the packaged safety/hazards.toml, used with "
-        "the packaged catalogue only)",
-    )
-    group.addoption(
-        "--safecase-key",
-        metavar="FILE",
-        default=None,
-        help="Ed25519 signing key (PEM); created on first use when missing",
-    )
-    group.addoption(
-        "--safecase-enforce",
-        action="store_true",
-        default=False,
-        help="fail the session when a claimed requirement is not SATISFIED",
-    )
+    add_options(parser)
+
+
+def _runtime_config(config: pytest.Config) -> SafecaseConfig:
+    """Safecase's configuration under test (``--safecase-config`` or the built-in defaults),
+    loaded once per session; a bad file is a usage error."""
+    loaded = config.stash.get(_RUNTIME_CONFIG, None)
+    if loaded is None:
+        from pipeline.config import load_config
+
+        try:
+            loaded = load_config(config.getoption("safecase_config"))
+        except ConfigError as exc:
+            raise pytest.UsageError("safecase: " + "\n".join(exc.lines)) from None
+        config.stash[_RUNTIME_CONFIG] = loaded
+    return loaded
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -113,24 +95,26 @@ def pytest_configure(config: pytest.Config) -> None:
         "requirement(*ids, kind=None, code=()): link this test to safety requirement IDs; "
         f"kind is one of {', '.join(EVIDENCE_KINDS)} (inferred when omitted)",
     )
+    settings = resolve_settings(config)
+    if settings is None:
+        return
     try:
-        catalogue = load_catalogue(config.getoption("safecase_requirements"))
-    except RequirementsError as exc:
-        raise pytest.UsageError(f"safecase: {exc}") from None
-    hazards = config.getoption("safecase_hazards")
-    try:
-        case = (
-            load_safety_case(hazards)
-            if hazards or not config.getoption("safecase_requirements")
-            else None
+        catalogue = load_catalogue(settings.catalogue, settings.id_pattern)
+        case = None
+        if settings.hazards is not None:
+            from evidence.safety_case import load_safety_case
+
+            case = load_safety_case(settings.hazards)
+        project = project_provenance(
+            settings.root,
+            name=settings.project_name,
+            version=settings.project_version,
+            files=settings.provenance_files,
         )
-    except RequirementsError as exc:
+    except (RequirementsError, EvidenceError) as exc:
         raise pytest.UsageError(f"safecase: {exc}") from None
-    config_path = config.getoption("safecase_config")
-    try:
-        safecase_config = load_config(config_path)
-    except ConfigError as exc:
-        raise pytest.UsageError("safecase: " + "\n".join(exc.lines)) from None
+    if settings.config_path is not None:
+        _runtime_config(config)  # a bad --safecase-config fails now, not in the first test
     profile = config.getoption("hypothesis_profile", None)
     # Remember the outer profile: a test that runs pytest in-process (pytester) must get its
     # own Hypothesis settings back when the inner session ends.
@@ -139,15 +123,13 @@ def pytest_configure(config: pytest.Config) -> None:
         hypothesis_settings.get_current_profile_name(),
     )
     set_active_profile(profile or hypothesis_settings.get_current_profile_name())
-    if _distributed(config) and (
-        config.getoption("safecase_out") or config.getoption("safecase_enforce")
-    ):
+    if _distributed(config) and (settings.out or settings.enforce):
         # Workers would each hold part of the evidence and the bundle would record none.
         raise pytest.UsageError(
             "safecase: evidence cannot be collected under pytest-xdist (-n/--dist): run "
             "without -n, or without --safecase-out/--safecase-enforce"
         )
-    config.stash[STATE] = _State(catalogue, safecase_config, config_path, case)
+    config.stash[STATE] = _State(settings, catalogue, project, case)
 
 
 def _distributed(config: pytest.Config) -> bool:
@@ -201,8 +183,8 @@ def evidence() -> Recorder:
 
 @pytest.fixture(scope="session")
 def safecase_config(pytestconfig: pytest.Config) -> SafecaseConfig:
-    """The configuration under test (``--safecase-config`` or the built-in defaults)."""
-    return pytestconfig.stash[STATE].config
+    """Safecase's configuration under test (``--safecase-config`` or the built-in defaults)."""
+    return _runtime_config(pytestconfig)
 
 
 def _marker_problems(item: pytest.Item, catalogue: Catalogue) -> list[str]:
@@ -253,7 +235,13 @@ def pytest_runtest_protocol(item: pytest.Item) -> Generator[None, Any, None]:
         record = recorder.end()
         state = item.config.stash.get(STATE, None)
         if state is not None:
-            state.items[item.nodeid] = _build_item(item, state, record)
+            state.items[item.nodeid] = build_item(
+                item,
+                state.reports.get(item.nodeid, {}),
+                record,
+                state.benchmarks.get(item.nodeid),
+                state.stats.get(item.nodeid),
+            )
 
 
 @pytest.hookimpl(hookwrapper=True, trylast=True)
@@ -263,7 +251,7 @@ def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, None]:
 
     def note(stats: dict[str, Any]) -> None:
         if state is not None:
-            state.stats[item.nodeid] = _summarise_stats(stats, item)
+            state.stats[item.nodeid] = summarise_stats(stats, item)
         if outer is not None:
             outer(stats)
 
@@ -283,7 +271,7 @@ def pytest_runtest_makereport(
     state.reports.setdefault(item.nodeid, {})[report.when] = report
     if report.when == "call":
         # funcargs are cleared at teardown, so read the benchmark's statistics now.
-        bench = _benchmark_detail(item)
+        bench = benchmark_detail(item)
         if bench is not None:
             state.benchmarks[item.nodeid] = bench
     if report.when == "call" and report.passed:
@@ -303,146 +291,17 @@ def pytest_runtest_makereport(
             )
 
 
-_FALSIFYING_START = re.compile(r"^(Falsifying (explicit )?example|Failing test case)\b")
-_BLOB = re.compile(r"@reproduce_failure\([^)]*\)")
-
-
-def _falsifying_example(text: str) -> str:
-    """The falsifying example Hypothesis printed (pytest prefixes such lines with 'E')."""
-    lines = [re.sub(r"^E {0,7}", "", line) for line in text.splitlines()]
-    for start, line in enumerate(lines):
-        if _FALSIFYING_START.match(line):
-            block = [line]
-            for follow in lines[start + 1 :]:
-                if not follow.strip():
-                    break
-                block.append(follow)
-                if follow.rstrip() == ")":
-                    break
-            return "\n".join(block)
-    return ""
-
-
-def _summarise_stats(stats: dict[str, Any], item: pytest.Item) -> dict[str, Any]:
-    counts = {"valid": 0, "invalid": 0, "overrun": 0, "interesting": 0}
-    for phase in ("reuse-phase", "generate-phase", "explain-phase"):
-        for case in stats.get(phase, {}).get("test-cases", []):
-            counts[case["status"]] = counts.get(case["status"], 0) + 1
-    current_settings = hypothesis_settings()
-    return {
-        "examples_run": sum(counts.values()),
-        "valid": counts["valid"],
-        "invalid": counts["invalid"] + counts["overrun"],
-        "failing": counts["interesting"],
-        "stopped_because": str(stats.get("stopped-because", "")),
-        "profile": active_profile(),
-        "max_examples": current_settings.max_examples,
-        "seed": (
-            "derandomized (derived from the test)"
-            if current_settings.derandomize
-            else str(item.config.getoption("hypothesis_seed", None) or "random")
-        ),
-    }
-
-
-def _benchmark_detail(item: pytest.Item) -> dict[str, Any] | None:
-    funcargs = getattr(item, "funcargs", None) or {}
-    fixture = funcargs.get("benchmark")
-    meta = getattr(fixture, "stats", None)
-    stats = getattr(meta, "stats", None)
-    if stats is None or not getattr(stats, "data", None):
-        return None
-    return {
-        "type": "benchmark",
-        "name": getattr(fixture, "name", item.name),
-        "group": getattr(fixture, "group", None) or "",
-        "rounds": int(stats.rounds),
-        "min_s": float(stats.min),
-        "max_s": float(stats.max),
-        "mean_s": float(stats.mean),
-        "median_s": float(stats.median),
-        "stddev_s": float(stats.stddev) if stats.rounds > 1 else 0.0,
-        "extra_info": dict(getattr(fixture, "extra_info", {}) or {}),
-    }
-
-
-def _build_item(item: pytest.Item, state: _State, record: Any) -> EvidenceItem:
-    reports = state.reports.get(item.nodeid, {})
-    outcome: Outcome = "passed"
-    message = ""
-    longrepr = ""
-    duration = sum(r.duration for r in reports.values())
-    for when in ("setup", "call", "teardown"):
-        report = reports.get(when)
-        if report is None:
-            continue
-        if report.failed:
-            outcome = "failed" if when == "call" else "error"
-            longrepr = str(report.longreprtext)[-_MAX_TEXT:]
-            message = longrepr.strip().splitlines()[-1][:500] if longrepr.strip() else ""
-            break
-        if report.skipped:
-            outcome = "skipped"
-            message = _skip_reason(report)
-            break
-    ids: list[str] = []
-    code: list[str] = []
-    kind: str | None = None
-    for marker in item.iter_markers("requirement"):
-        ids.extend(a for a in marker.args if a not in ids)
-        code.extend(marker.kwargs.get("code", ()))
-        kind = kind or marker.kwargs.get("kind")
-    details: list[dict[str, Any]] = list(record.details) if record else []
-    for group, values in record.counters.items() if record else []:
-        details.append({"type": "counts", "name": group, "values": dict(values)})
-    bench = state.benchmarks.get(item.nodeid)
-    if bench is not None:
-        details.append(bench)
-    hyp = state.stats.get(item.nodeid)
-    if hyp is not None:
-        info = str(getattr(item, "hypothesis_report_information", "")) + "\n" + longrepr
-        hyp["falsifying_example"] = _falsifying_example(info)
-        blob = _BLOB.search(info)
-        hyp["reproduce_blob"] = blob.group(0) if blob else ""
-    inferred = (
-        kind
-        or (record.kind if record else None)
-        or ("measurement" if bench is not None else None)
-        or ("property" if hyp is not None else "example")
-    )
-    return EvidenceItem(
-        nodeid=item.nodeid,
-        file=str(item.path.relative_to(item.config.rootpath))
-        if item.path.is_relative_to(item.config.rootpath)
-        else str(item.path),
-        requirement_ids=ids,
-        kind=inferred,
-        outcome=outcome,
-        duration_s=duration,
-        code=code,
-        message=message,
-        longrepr=longrepr,
-        hypothesis=hyp,
-        details=details,
-    )
-
-
-def _skip_reason(report: pytest.TestReport) -> str:
-    longrepr = report.longrepr
-    if isinstance(longrepr, tuple) and len(longrepr) == 3:
-        return str(longrepr[2])
-    return str(longrepr)
-
-
 def _provenance(session: pytest.Session, state: _State) -> dict[str, Any]:
+    """Where this evidence comes from: the project under test and its tree, the catalogue,
+    Hypothesis and pytest; safecase's configuration and classifier model only when the
+    settings ask for them (``runtime``, SR-EVD-8)."""
     cfg = session.config
     current_settings = hypothesis_settings()
     catalogue_bytes = Path(state.catalogue.path).read_bytes()
-    return {
-        "config_hash": config_hash(state.config),
-        "config_path": state.config_path or "<built-in defaults>",
-        "config": state.config.model_dump(mode="json"),
+    provenance: dict[str, Any] = {
+        "project": state.project,
         "catalogue_sha256": hashlib.sha256(catalogue_bytes).hexdigest(),
+        "id_pattern": state.catalogue.id_pattern,
         "git": git_state(cfg.rootpath),
         "hypothesis_profile": active_profile(),
         "hypothesis_settings": {
@@ -453,13 +312,25 @@ def _provenance(session: pytest.Session, state: _State) -> dict[str, Any]:
             "seed": cfg.getoption("hypothesis_seed", None),
         },
         "pytest_args": list(cfg.invocation_params.args),
-        "classifier_model": model_provenance(state.config.classify),
-        **current().session_provenance,
     }
+    if state.settings.runtime:
+        from pipeline.classify.model import model_provenance
+        from pipeline.config import config_hash
+
+        runtime = _runtime_config(cfg)
+        provenance |= {
+            "config_hash": config_hash(runtime),
+            "config_path": state.settings.config_path or "<built-in defaults>",
+            "config": runtime.model_dump(mode="json"),
+            "classifier_model": model_provenance(runtime.classify),
+        }
+    return provenance | current().session_provenance
 
 
 def build_bundle(session: pytest.Session, exitstatus: int) -> Bundle:
     """Assemble the evidence of this session (used at session end and by tests)."""
+    from evidence.model import Bundle, compute_verdicts
+
     state = session.config.stash[STATE]
     items = list(state.items.values())
     return Bundle(
@@ -483,24 +354,25 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     try:
         if state is None:
             return
-        out = session.config.getoption("safecase_out")
-        enforce = session.config.getoption("safecase_enforce")
-        if not out and not enforce:
+        settings = state.settings
+        if settings.out is None and not settings.enforce:
             return
         bundle = build_bundle(session, exitstatus)
         state.bundle = bundle
-        if out:
-            key_option = session.config.getoption("safecase_key")
-            key_path = Path(key_option) if key_option else None
-            state.bundle_dir = Path(out)
+        if settings.out is not None:
+            from evidence.manifest import check_key_outside
+            from evidence.report import write_bundle
+            from safety.audit.keys import load_or_create_key
+
+            state.bundle_dir = settings.out
             try:
                 # A key inside the bundle would be shipped with it (SR-EVD-1).
-                check_key_outside(state.bundle_dir, key_path)
-                key, _, _ = load_or_create_key(key_path)
+                check_key_outside(state.bundle_dir, settings.key)
+                key, _, _ = load_or_create_key(settings.key)
                 write_bundle(state.bundle_dir, bundle, key)
             except SafecaseError as exc:
                 raise pytest.UsageError(f"safecase: {exc}") from None
-        if enforce and bundle.summary["blocking_requirements"] and session.exitstatus == 0:
+        if settings.enforce and bundle.summary["blocking_requirements"] and session.exitstatus == 0:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED
     finally:
         current().pop_session()

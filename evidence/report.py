@@ -90,7 +90,10 @@ def render_markdown(bundle: Bundle) -> str:
         "",
         f"- created: {bundle.created_utc}; profile: `{bundle.profile}`",
         f"- commit: `{p['git']['commit']}`" + (" (dirty tree)" if p["git"]["dirty"] else ""),
-        f"- config hash: `{p['config_hash']}`",
+        f"- project: {p['project']['name']} {p['project']['version']}"
+        if "project" in p
+        else "- project: not recorded",
+        f"- config hash: `{p.get('config_hash', 'not recorded')}`",
         f"- tests: {s['tests']['passed']} passed, {s['tests']['failed']} failed, "
         f"{s['tests']['error']} errors, {s['tests']['skipped']} skipped",
         "- requirements: " + ", ".join(f"{v} {k}" for k, v in s["requirements"].items()),

@@ -16,8 +16,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from evidence.catalogue import default_catalogue_path
 from evidence.model import Bundle
 from evidence.plugin import STATE
+from evidence.safety_case import default_hazards_path
 
 __all__ = ["CertificationResult", "run_certification"]
 
@@ -109,6 +111,12 @@ def run_certification(
         f"--hypothesis-profile={profile}",
         f"--safecase-out={bundle_dir}",
         "--safecase-enforce",
+        # safecase certifies itself: its catalogue, hazard log and runtime provenance, whatever
+        # ini file the tree has (docs/plugin.md)
+        f"--safecase-requirements={default_catalogue_path()}",
+        f"--safecase-hazards={default_hazards_path()}",
+        "-o",
+        "safecase_runtime=true",
         f"--benchmark-json={bundle_dir / 'benchmarks.json'}",
     ]
     if not benchmarks:

@@ -10,13 +10,13 @@ mitigated, and everything named exists.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args
 
 from evidence.catalogue import Catalogue
+from pipeline.compat import tomllib
 from pipeline.config import SafecaseConfig
 from pipeline.errors import RequirementsError
 from safety.model.monitors import DEFAULT_MONITORS

@@ -15,7 +15,6 @@ so a seed reproduces a case. The campaign and its judge: :mod:`properties.fuzz_c
 
 from __future__ import annotations
 
-import enum
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from pipeline.compat import StrEnum
 from pipeline.sources.serial import rplidar as rp
 from pipeline.sources.serial import scip
 from pipeline.sources.serial.assembly import LinkCounters
@@ -64,7 +64,7 @@ MUTATIONS_PER_REVOLUTION: dict[str, int] = {
 }
 
 
-class Mutation(enum.StrEnum):
+class Mutation(StrEnum):
     """One change to one frame of a device stream (a swap changes two adjacent frames)."""
 
     BIT_FLIP = "bit flip"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from random import Random
 from typing import Any
 
@@ -16,6 +15,7 @@ from pydantic import BaseModel
 from evidence.profiles import examples
 from evidence.record import current
 from pipeline.classify.model import Classifier
+from pipeline.compat import tomllib
 from pipeline.config import (
     SafecaseConfig,
     config_hash,

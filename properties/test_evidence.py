@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from pathlib import Path
 
@@ -14,7 +15,13 @@ from evidence.manifest import MANIFEST, SIGNATURE, verify_bundle, write_manifest
 
 _names = st.from_regex(r"[a-z]{1,8}(/[a-z]{1,8})?\.(json|html|md|xml|png|smt2)", fullmatch=True)
 _bundles = st.dictionaries(_names, st.binary(min_size=1, max_size=256), min_size=1, max_size=6)
-_key = st.binary(min_size=32, max_size=32).map(Ed25519PrivateKey.from_private_bytes)
+# Keys from a hash of a drawn seed: drawn raw, the key's bytes could equal a drawn file's (both
+# all zero, say), and the signer rightly refuses a bundle that holds its key.
+_key = st.integers(0, 2**64 - 1).map(
+    lambda seed: Ed25519PrivateKey.from_private_bytes(
+        hashlib.sha256(seed.to_bytes(8, "big")).digest()
+    )
+)
 
 
 def _write(root: Path, files: dict[str, bytes]) -> None:

@@ -6,7 +6,7 @@ line per problem and exit code 2, never a traceback (SR-CFG-1).
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 from typing import Annotated, NoReturn
 
@@ -14,6 +14,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from pipeline.compat import UTC
 from pipeline.config import SafecaseConfig, load_config
 from pipeline.errors import ConfigError
 

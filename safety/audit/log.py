@@ -34,7 +34,7 @@ import queue
 import threading
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from importlib import metadata
 from pathlib import Path
 from types import TracebackType
@@ -42,6 +42,7 @@ from typing import Any
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
+from pipeline.compat import UTC
 from pipeline.config import AuditSection, SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps, jsonable

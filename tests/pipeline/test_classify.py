@@ -172,6 +172,8 @@ def test_every_evidence_bundle_records_the_model_hash(pytester: pytest.Pytester)
     out = pytester.path / "bundle"
     result = pytester.runpytest(
         "--safecase-requirements=catalogue.toml",
+        "-o",
+        "safecase_runtime=true",  # safecase's own suite records its model (docs/plugin.md)
         f"--safecase-out={out}",
         f"--safecase-key={pytester.path / 'key.pem'}",
         "-p",

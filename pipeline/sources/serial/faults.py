@@ -10,15 +10,16 @@ driver detected.
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.compat import StrEnum
+
 __all__ = ["FaultEvent", "FaultInjector", "FaultKind", "FaultPlan", "Injected"]
 
 
-class FaultKind(enum.StrEnum):
+class FaultKind(StrEnum):
     """What can go wrong on the wire."""
 
     BIT_FLIP = "bit_flip"

@@ -18,12 +18,12 @@ both become NaN (no return).
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
+from pipeline.compat import StrEnum
 from pipeline.sources.serial.errors import ChecksumError, EncodeError, FrameError, ProtocolError
 from pipeline.types import Scan
 
@@ -108,7 +108,7 @@ def decode_values(data: bytes | npt.NDArray[np.uint8], width: int, offset: int =
 
 
 # ------------------------------------------------------------------------------ commands
-class Name(enum.StrEnum):
+class Name(StrEnum):
     """The SCIP 2.0 commands this codec knows."""
 
     SCIP20 = "SCIP2.0"
