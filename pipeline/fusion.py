@@ -15,9 +15,16 @@ the global nearest-neighbour assignment (:func:`pipeline.track.associate.assign`
 distances). A match raises the track's confidence by ``fusion.confidence_boost`` (capped at 1);
 an unmatched fresh detection becomes a thermal-only pedestrian whose confidence is below
 ``classify.medium_confidence_min``, so the governor gives it the most cautious margin tier.
-Fresh radar returns are matched the same way and their Doppler range rate updates the matched
-track's state (:func:`doppler_update`); radar alone never creates an object. Stale detections
-are counted and skipped: the cycle falls back to LiDAR only (:attr:`FusionCounts.lidar_only`).
+Fresh radar returns are matched the same way (Euclidean, ``fusion.gate_m``) unless a
+:class:`pipeline.sensors.radar.RadarGate` is given: then returns already filtered and moved
+into the tracking frame by the radar's front-end (:mod:`pipeline.sensors.radar`) are matched
+one-to-one to live tracks within the tracker's own gates, Euclidean and Mahalanobis with the
+return's and the body's extent in the covariance (:func:`pipeline.sensors.radar.radar_costs`,
+SR-FUS-7), and where the front-end gave a return a position weight (a degraded LiDAR) its
+position updates the track too (:func:`pipeline.sensors.radar.position_update`). A match's
+Doppler range rate updates the track's state (:func:`doppler_update`); radar alone never
+creates an object. Stale detections are counted and skipped: the cycle falls back to LiDAR only
+(:attr:`FusionCounts.lidar_only`).
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from pipeline.config import FusionSection
 from pipeline.errors import SafecaseError
 from pipeline.frames import is_identity, to_parent
 from pipeline.roles import FreshnessGuard
+from pipeline.sensors.radar import RadarGate, position_covariance, position_update, radar_costs
 from pipeline.track.associate import assign
 from pipeline.types import (
     BoolArray,
@@ -160,6 +168,47 @@ def _gated_match(
     return rows, live[cols]
 
 
+def _gated_radar(
+    now_s: float,
+    tracks: Tracks,
+    live: IntArray,
+    radar: RadarDetections,
+    valid: BoolArray,
+    f: FusionSection,
+    guard: FreshnessGuard,
+    gate: RadarGate,
+) -> tuple[IntArray, IntArray, IntArray, FloatArray, dict[str, int]]:
+    """Freshness, cap and one-to-one matching of radar returns within the tracker's gates
+    (module docstring, SR-FUS-7): the kept returns, the positions in that list that matched,
+    the tracks they matched, each kept return's position covariance, and the counts."""
+    fresh, stale, future = _classify_ages(
+        guard, now_s, radar.stamp_s, valid, f.radar_max_age_s, f.clock_skew_s
+    )
+    # The cap keeps the returns nearest the radar.
+    kept, over = _cap(fresh, radar.range_m, np.zeros(radar.n), f.max_radar)
+    det_cov = position_covariance(
+        radar.range_m[kept], radar.bearing_rad[kept], gate.range_std_m, gate.azimuth_std_rad
+    )
+    rows = cols = np.empty(0, dtype=np.int64)
+    if kept.shape[0] and live.shape[0]:
+        state = tracks.state[live]
+        dt = radar.stamp_s[kept][:, None] - tracks.stamp_s
+        xy = state[None, :, :2] + state[None, :, 2:] * dt[:, :, None]
+        extent = np.nan_to_num(np.maximum(tracks.length_m[live], tracks.width_m[live]))
+        det_xy = np.stack([radar.x_m[kept], radar.y_m[kept]], axis=1)
+        cost = radar_costs(xy, tracks.covariance[live, :2, :2], extent, det_xy, det_cov, gate)
+        rows, cols = assign(cost)
+    counts = {
+        "n_radar": radar.n,
+        "n_radar_invalid": int(np.count_nonzero(~valid)),
+        "n_radar_stale": stale,
+        "n_radar_future": future,
+        "n_radar_over_cap": over,
+        "n_radar_matched": int(rows.shape[0]),
+    }
+    return kept, rows, live[cols], det_cov, counts
+
+
 def _sort_detections(
     sensor: str,
     now_s: float,
@@ -202,6 +251,7 @@ def fuse(
     confidence: FloatArray | None = None,
     thermal: ThermalDetections | None = None,
     radar: RadarDetections | None = None,
+    radar_gate: RadarGate | None = None,
 ) -> FusedTracks:
     """Fuse fresh thermal and radar detections into ``tracks`` at decision time ``now_s`` [s].
 
@@ -209,7 +259,9 @@ def fuse(
     non-finite values count as 0). Serves SR-FUS-1 (only fresh detections are fused; stale
     ones give the LiDAR-only fallback) and SR-FUS-3 (unmatched fresh thermal detections become
     low-confidence pedestrians). Raises :class:`FusionError` when ``confidence`` does not have
-    one entry per track. ``guard`` decides freshness (:class:`pipeline.roles.FreshnessGuard`).
+    one entry per track. ``guard`` decides freshness (:class:`pipeline.roles.FreshnessGuard`);
+    ``radar_gate`` (the radar's noise and the tracker's gates) selects the front-end's gating
+    and position weighting (SR-FUS-7); None keeps the Euclidean gate.
     """
     f = section
     n = tracks.n
@@ -253,10 +305,16 @@ def fuse(
                 & np.isfinite(radar.radial_velocity_mps)
                 & (radar.range_m >= 0.0)
             )
-        kept, rows, matched, radar_counts = _sort_detections(
-            "radar", now_s, tracks, live, radar.stamp_s, rx, ry, valid,
-            f.radar_max_age_s, f.max_radar, f, guard,
-        )  # fmt: skip
+        det_cov = np.empty((0, 2, 2))
+        if radar_gate is None:
+            kept, rows, matched, radar_counts = _sort_detections(
+                "radar", now_s, tracks, live, radar.stamp_s, rx, ry, valid,
+                f.radar_max_age_s, f.max_radar, f, guard,
+            )  # fmt: skip
+        else:
+            kept, rows, matched, det_cov, radar_counts = _gated_radar(
+                now_s, tracks, live, radar, valid, f, guard, radar_gate
+            )
         if rows.shape[0]:
             used = kept[rows]
             new_x, new_p = doppler_update(
@@ -266,6 +324,19 @@ def fuse(
                 radar.radial_velocity_mps[used],
                 f.radar_doppler_std_mps,
             )
+            weight = np.zeros(used.shape[0])
+            if radar_gate is not None and radar.position_weight is not None:
+                weight = np.nan_to_num(radar.position_weight[used])
+            by_pos = weight > 0.0
+            if by_pos.any():
+                extent = np.nan_to_num(
+                    np.maximum(tracks.length_m[matched], tracks.width_m[matched])
+                )[by_pos]
+                r = det_cov[rows][by_pos] + (0.25 * extent**2)[:, None, None] * np.eye(2)
+                z = np.stack([radar.x_m[used], radar.y_m[used]], axis=1)[by_pos]
+                new_x[by_pos], new_p[by_pos] = position_update(
+                    new_x[by_pos], new_p[by_pos], z, r / weight[by_pos, None, None]
+                )
             state, cov = state.copy(), cov.copy()
             state[matched], cov[matched] = new_x, new_p
             radar_index[matched] = used
@@ -288,10 +359,12 @@ def fuse(
 
 @dataclass(frozen=True)
 class GatedFusion:
-    """The fusion role's default: :func:`fuse` with the ``fusion`` section and a guard."""
+    """The fusion role's default: :func:`fuse` with the ``fusion`` section, a guard and, for a
+    radar behind its front-end, the radar gate (None: the Euclidean gate)."""
 
     config: FusionSection
     guard: FreshnessGuard
+    radar_gate: RadarGate | None = None
 
     def fuse(
         self,
@@ -310,4 +383,5 @@ class GatedFusion:
             confidence=confidence,
             thermal=thermal,
             radar=radar,
+            radar_gate=self.radar_gate,
         )

@@ -65,7 +65,7 @@ def _tangents(
     polygons_per_beam: list[list[FloatArray]],
 ) -> np.ndarray:
     """Mark disagreeing beams that are vertex tangents (see ``vertex_touch``) as agreeing."""
-    out = ok.copy()
+    out: np.ndarray = ok.copy()
     for i in np.flatnonzero(~ok):
         verts = np.concatenate(polygons_per_beam[i])
         if vertex_touch(origins[i], float(angles[i]), verts, [float(ours[i]), float(ref[i])]):
@@ -83,10 +83,17 @@ def test_every_ray_equals_the_first_shapely_intersection(
     lidar = Lidar(spec.exact(), np.random.default_rng(0))
     ranges, owner, _ = lidar.geometric_ranges(scene.world, _fixed(scene.pose), 0.0)
     world_angles = spec.angles_rad + scene.pose[2]
-    ref = first_hits(
-        np.array(scene.pose[:2]), world_angles, spec.max_range_m, _all_polygons(scene.world, 0.0)
+    polygons = _all_polygons(scene.world, 0.0)
+    origin = np.array(scene.pose[:2])
+    ref = first_hits(origin, world_angles, spec.max_range_m, polygons)
+    ok = _tangents(
+        _agree(ranges, ref),
+        np.tile(origin, (world_angles.size, 1)),
+        world_angles,
+        ranges,
+        ref,
+        [polygons] * world_angles.size,
     )
-    ok = _agree(ranges, ref)
     rec = current()
     rec.count("beams", "agree", int(ok.sum()))
     rec.count("beams", "disagree", int((~ok).sum()))

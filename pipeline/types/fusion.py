@@ -48,6 +48,13 @@ class RadarDetections:
     The radar sits at ``(mount_x_m, mount_y_m)``; ``bearing_rad`` is the direction of the return
     from there in the robot frame and ``radial_velocity_mps`` the measured range rate (positive:
     moving away). Non-finite values are allowed here: fusion drops and counts them.
+
+    A 4-D imaging radar also reports each return's ``elevation_rad`` (up from the horizontal),
+    radar cross-section ``rcs_dbsm`` and signal-to-noise ratio ``snr_db`` (None: not reported),
+    which its front-end filters on (:mod:`pipeline.sensors.radar`, SR-FUS-7). The front-end
+    hands fusion the returns it kept, moved into the tracking frame (the mount then in that
+    frame too) with their Doppler compensated for the robot's own motion, and each return's
+    ``position_weight`` (None or 0: the return's position is not used, only its Doppler).
     """
 
     stamp_s: FloatArray
@@ -56,15 +63,26 @@ class RadarDetections:
     radial_velocity_mps: FloatArray
     mount_x_m: float = 0.0
     mount_y_m: float = 0.0
+    elevation_rad: FloatArray | None = None
+    rcs_dbsm: FloatArray | None = None
+    snr_db: FloatArray | None = None
+    position_weight: FloatArray | None = None
 
     def __post_init__(self) -> None:
         names = ("stamp_s", "range_m", "bearing_rad", "radial_velocity_mps")
         freeze_fields(self, names, np.float64)
+        optional = tuple(
+            k
+            for k in ("elevation_rad", "rcs_dbsm", "snr_db", "position_weight")
+            if getattr(self, k) is not None
+        )
+        freeze_fields(self, optional, np.float64)
         n = self.stamp_s.shape
-        if len(n) != 1 or any(getattr(self, k).shape != n for k in names):
-            shapes = [getattr(self, k).shape for k in names]
+        if len(n) != 1 or any(getattr(self, k).shape != n for k in names + optional):
+            shapes = [getattr(self, k).shape for k in names + optional]
             raise ValueError(
-                "RadarDetections: stamp_s, range_m, bearing_rad and radial_velocity_mps must be "
+                "RadarDetections: stamp_s, range_m, bearing_rad and radial_velocity_mps (and "
+                f"any of elevation_rad, rcs_dbsm, snr_db, position_weight) must be "
                 f"one-dimensional and of equal length, got {shapes}"
             )
         if not (np.isfinite(self.mount_x_m) and np.isfinite(self.mount_y_m)):

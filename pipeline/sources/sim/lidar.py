@@ -13,13 +13,21 @@ applied to the exact geometric ranges in this order:
    ``noise_clip_sigma`` standard deviations, so that every returned range lies within
    :attr:`LidarSpec.noise_bound_m` of its (possibly mixed) true value;
 3. **range limits**: a measured range outside ``[min_range_m, max_range_m]`` is no return (NaN);
-4. **dropouts**: each beam independently returns nothing (NaN) with ``dropout_prob``.
+4. **dropouts**: each beam independently returns nothing (NaN) with ``dropout_prob``;
+5. **weather** (only when one of its fields is set, :mod:`pipeline.sources.sim.weather`): a
+   return beyond :attr:`LidarSpec.attenuated_max_range_m` (two-way extinction
+   ``extinction_per_m``) is lost, each beam is lost with ``weather_dropout_prob``, and with
+   ``backscatter_prob`` a beam returns a spurious range drawn uniformly from
+   ``[min_range_m, backscatter_max_range_m]`` when that is nearer than its own return and
+   than the surface it meets.
 
 With ``time_skew`` the beams of one revolution are taken at their own times
 ``stamp_s + i * beam_period_s`` while the scanner and the objects move; otherwise every beam
 sees the world at ``stamp_s`` and the scan reports ``beam_period_s = 0``. All randomness comes
 from the ``numpy.random.Generator`` given; the same number of draws is made every scan, so a
-seed reproduces a run bit for bit (SR-SIM-2).
+seed reproduces a run bit for bit (SR-SIM-2). The weather's draws are made only when weather is
+set, so a scanner without weather draws (and returns) exactly steps 1-4's numbers
+(SR-SIM-6).
 """
 
 from __future__ import annotations
@@ -43,6 +51,7 @@ __all__ = [
     "Lidar",
     "LidarSpec",
     "ScannerPoses",
+    "attenuated_range_m",
 ]
 
 STRUCTURE_ID = -2  # per-beam owner of a beam that hit static structure
@@ -50,6 +59,24 @@ NO_RETURN_ID = -1  # per-beam owner of a beam that hit nothing within range
 
 ScannerPoses = Callable[[FloatArray], FloatArray]
 """Scanner pose(s) in the world frame at the given times: ``(T,)`` -> ``(T, 3)`` (x, y, yaw)."""
+
+
+def attenuated_range_m(max_range_m: float, extinction_per_m: float) -> float:
+    """The farthest range [m] at which the clear-air threshold target still returns:
+    ``R`` with ``R^2 exp(2 alpha R) = R0^2``, i.e. ``ln R + alpha R = ln R0``. Newton's method
+    from ``R0`` on that concave increasing function: the first step lands below the root (at
+    ``R0 / (1 + alpha R0) > 0``) and the iterates then rise monotonically to it."""
+    if extinction_per_m <= 0.0:
+        return max_range_m
+    r = max_range_m
+    target = math.log(max_range_m)
+    for _ in range(60):
+        f = math.log(r) + extinction_per_m * r - target
+        step = f / (1.0 / r + extinction_per_m)
+        r -= step
+        if abs(step) <= 1e-12 * r:
+            break
+    return r
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +96,10 @@ class LidarSpec:
     mixed_pixel_prob: float = 0.0
     mixed_pixel_min_jump_m: float = 0.3
     time_skew: bool = False
+    extinction_per_m: float = 0.0
+    weather_dropout_prob: float = 0.0
+    backscatter_prob: float = 0.0
+    backscatter_max_range_m: float = 2.5
 
     def __post_init__(self) -> None:
         problems = []
@@ -89,7 +120,19 @@ class LidarSpec:
             )
         if self.range_noise_std_m < 0 or self.noise_clip_sigma < 0:
             problems.append("range_noise_std_m and noise_clip_sigma must be >= 0")
-        for name in ("dropout_prob", "mixed_pixel_prob"):
+        if not (math.isfinite(self.extinction_per_m) and self.extinction_per_m >= 0):
+            problems.append(f"extinction_per_m {self.extinction_per_m} must be >= 0")
+        if not self.backscatter_max_range_m > self.min_range_m:
+            problems.append(
+                f"backscatter_max_range_m {self.backscatter_max_range_m} must exceed "
+                f"min_range_m {self.min_range_m}"
+            )
+        for name in (
+            "dropout_prob",
+            "mixed_pixel_prob",
+            "weather_dropout_prob",
+            "backscatter_prob",
+        ):
             if not (0 <= getattr(self, name) <= 1):
                 problems.append(f"{name} {getattr(self, name)} must be in [0, 1]")
         if problems:
@@ -116,9 +159,32 @@ class LidarSpec:
         """Whether the beams cover the whole circle (the last beam neighbours the first)."""
         return abs(self.n_beams * self.angle_increment_rad - 2 * math.pi) < 1e-9
 
+    @property
+    def weather_active(self) -> bool:
+        """Whether any weather effect is set (then, and only then, weather draws are made)."""
+        return (
+            self.extinction_per_m > 0.0
+            or self.weather_dropout_prob > 0.0
+            or self.backscatter_prob > 0.0
+        )
+
+    @property
+    def attenuated_max_range_m(self) -> float:
+        """The farthest return under the two-way extinction: ``R`` with
+        ``R^2 exp(2 extinction R) = max_range^2`` (SR-SIM-6)."""
+        return attenuated_range_m(self.max_range_m, self.extinction_per_m)
+
     def exact(self) -> LidarSpec:
         """The same layout with every sensor effect off (exact geometric ranges)."""
-        return replace(self, range_noise_std_m=0.0, dropout_prob=0.0, mixed_pixel_prob=0.0)
+        return replace(
+            self,
+            range_noise_std_m=0.0,
+            dropout_prob=0.0,
+            mixed_pixel_prob=0.0,
+            extinction_per_m=0.0,
+            weather_dropout_prob=0.0,
+            backscatter_prob=0.0,
+        )
 
     def with_changes(self, **changes: Any) -> LidarSpec:
         """A copy with some fields changed (validated again)."""
@@ -180,7 +246,9 @@ class BeamTruth:
     ``true_range_m``: exact geometric range of the first hit (``inf``: nothing within
     ``max_range_m``). ``owner_id``: object id hit, :data:`STRUCTURE_ID` or :data:`NO_RETURN_ID`.
     ``mixed``: the beam returned a mixed pixel. ``dropout``: the beam was dropped at random.
-    ``beam_time_s``: when each beam was taken.
+    ``beam_time_s``: when each beam was taken. ``weather_lost``: the beam's return was lost to
+    extinction or rain; ``spurious``: it returned a backscatter range (both all False without
+    weather).
     """
 
     true_range_m: FloatArray
@@ -188,6 +256,8 @@ class BeamTruth:
     mixed: BoolArray
     dropout: BoolArray
     beam_time_s: FloatArray
+    weather_lost: BoolArray
+    spurious: BoolArray
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "true_range_m", frozen_array(self.true_range_m))
@@ -195,6 +265,8 @@ class BeamTruth:
         object.__setattr__(self, "mixed", frozen_array(self.mixed, np.bool_))
         object.__setattr__(self, "dropout", frozen_array(self.dropout, np.bool_))
         object.__setattr__(self, "beam_time_s", frozen_array(self.beam_time_s))
+        object.__setattr__(self, "weather_lost", frozen_array(self.weather_lost, np.bool_))
+        object.__setattr__(self, "spurious", frozen_array(self.spurious, np.bool_))
 
 
 class Lidar:
@@ -293,6 +365,9 @@ class Lidar:
         out_of_range = ~((measured >= spec.min_range_m) & (measured <= spec.max_range_m))
         dropout = u_drop < spec.dropout_prob
         measured[out_of_range | dropout] = np.nan
+        lost = spurious = np.zeros(n, dtype=bool)
+        if spec.weather_active:
+            measured, lost, spurious = self._weather(measured, true_r)
         scan = Scan(
             stamp_s=float(stamp_s),
             angles_rad=self._angles,
@@ -301,5 +376,28 @@ class Lidar:
             seq=seq,
             source=source,
         )
-        truth = BeamTruth(true_r, owner, mixed, dropout, times)
+        truth = BeamTruth(true_r, owner, mixed, dropout, times, lost, spurious)
         return scan, truth
+
+    def _weather(
+        self, measured: FloatArray, true_r: FloatArray
+    ) -> tuple[FloatArray, BoolArray, BoolArray]:
+        """Weather effects on the measured ranges (module docstring, step 5): three fixed
+        draws per beam whatever the scene. Droplets echo only in front of the surface the beam
+        meets (``true_r``) and only when nearer than what the beam measured."""
+        spec, rng = self.spec, self._rng
+        n = spec.n_beams
+        u_lost = rng.random(n)
+        u_back = rng.random(n)
+        u_range = rng.random(n)
+        with np.errstate(invalid="ignore"):
+            lost = np.isfinite(measured) & (
+                (measured > spec.attenuated_max_range_m) | (u_lost < spec.weather_dropout_prob)
+            )
+        out = np.where(lost, np.nan, measured)
+        echo = spec.min_range_m + u_range * (spec.backscatter_max_range_m - spec.min_range_m)
+        # NaN (no return) counts as farther than any echo; inf (nothing hit) too.
+        nearer = ~(out <= echo) & (echo < true_r)
+        spurious = (u_back < spec.backscatter_prob) & nearer
+        out[spurious] = echo[spurious]
+        return out, lost, spurious
