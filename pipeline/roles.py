@@ -7,14 +7,15 @@ constructor; each role's default implementation lives in the role's own module
 :class:`~pipeline.track.associate.CascadeAssociator`,
 :class:`~pipeline.features.TrackFeatureExtractor`, :class:`~pipeline.classify.model.Classifier`,
 :class:`~pipeline.fusion.GatedFusion`, :class:`~pipeline.predict.KinematicPredictor`). A second
-implementation of a role (an L-shape fit beside the box, JPDA beside the Hungarian cascade)
-plugs in beside the default without touching the chain.
+implementation of a role (:class:`~pipeline.shape.lshape.LShapeShapes` beside the box,
+:class:`~pipeline.track.jpda.JpdaAssociator` beside the Hungarian cascade, each chosen by the
+configuration) plugs in beside the default without touching the chain.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 from pipeline.types import (
     BoolArray,
@@ -33,7 +34,7 @@ from pipeline.types import (
     TrackFeatures,
     Tracks,
 )
-from pipeline.types.tracking import Partition
+from pipeline.types.tracking import Partition, SoftAssociation
 
 __all__ = [
     "Associator",
@@ -44,6 +45,7 @@ __all__ = [
     "Predictor",
     "ScanFilter",
     "ShapeEstimator",
+    "SoftAssociator",
     "TrackClassifier",
     "TrackerRole",
 ]
@@ -78,6 +80,19 @@ class Associator(Protocol):
     def associate(
         self, cost: FloatArray, groups: Sequence[BoolArray]
     ) -> tuple[IntArray, BoolArray]: ...
+
+
+@runtime_checkable
+class SoftAssociator(Associator, Protocol):
+    """An associator that may update a track with several detections at once (JPDA).
+
+    ``log_norm`` (tracks,) is ``-log(2 pi sqrt(det S))`` of each track's innovation
+    covariance; the result says which tracks take a weighted update and with which weights.
+    """
+
+    def associate_soft(
+        self, cost: FloatArray, groups: Sequence[BoolArray], log_norm: FloatArray
+    ) -> SoftAssociation: ...
 
 
 class TrackerRole(Protocol):

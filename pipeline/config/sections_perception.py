@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Literal, Self
+from typing import Literal
 
 from pydantic import Field, model_validator
 
+from pipeline.compat import Self
 from pipeline.config.base import Section
 
 
@@ -78,6 +79,15 @@ class ClusterSection(Section):
     # Floor of the box area used for point density, so a line-shaped cluster (zero-width box)
     # gets a finite density.
     density_min_area_m2: float = Field(0.01, gt=0.0, le=100.0)
+    # Shape estimator (SR-TRK-7): "box" the minimum-area box, "lshape" the search-based
+    # L-shape fit (Zhang et al. 2017) with the box as fallback (pipeline/shape/lshape.py).
+    shape_estimator: Literal["box", "lshape"] = "box"
+    lshape_criterion: Literal["closeness", "area", "variance"] = "closeness"
+    lshape_angle_step_deg: float = Field(1.0, ge=0.05, le=10.0)
+    lshape_perpendicular_tol_deg: float = Field(15.0, ge=0.0, le=45.0)
+    lshape_min_edge_inliers: int = Field(6, ge=2, le=1000)
+    lshape_inlier_m: float = Field(0.1, gt=0.0, le=2.0)
+    lshape_closeness_floor_m: float = Field(0.01, gt=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
@@ -115,6 +125,25 @@ class TrackSection(Section):
     # Size comparison for re-identification: |a - b| <= tolerance * max(a, b, floor), so
     # leg-sized clusters are not refused over a few centimetres of noise.
     reid_size_floor_m: float = Field(0.1, ge=0.0, le=10.0)
+    # Association (SR-TRK-8): "hungarian" the gated cascade everywhere; "jpda" joint
+    # probabilistic data association where confirmed tracks share gated detections, the
+    # cascade elsewhere (pipeline/track/jpda.py). A cluster of tracks whose joint hypotheses
+    # could exceed jpda_max_hypotheses falls back to the cascade (counted).
+    association: Literal["hungarian", "jpda"] = "hungarian"
+    jpda_detection_prob: float = Field(0.9, gt=0.0, le=1.0)
+    jpda_max_hypotheses: int = Field(2048, ge=1, le=1_000_000)
+    jpda_surveillance_area_m2: float = Field(2827.0, gt=0.0, le=1e6)
+    jpda_clutter_density_min_per_m2: float = Field(1e-4, gt=0.0, le=100.0)
+    jpda_clutter_smoothing: float = Field(0.1, gt=0.0, le=1.0)
+    # Track heading (SR-TRK-7): the detections' box axes smoothed with this gain; the 180 deg
+    # flip resolved by the velocity above heading_flip_speed_mps, else by the heading history.
+    # Below about 1 m/s a creeping vehicle's centroid slides faster than it drives as its
+    # visible faces change, and resolves the flip the wrong way (docs/findings/tracking-airside.md).
+    heading_smoothing: float = Field(0.3, gt=0.0, le=1.0)
+    heading_flip_speed_mps: float = Field(1.0, ge=0.0, le=20.0)
+    # A certain velocity above this speed (but below the flip speed) still chooses which side
+    # of the box is the heading's, without resolving the flip.
+    heading_side_speed_mps: float = Field(0.3, ge=0.0, le=20.0)
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:

@@ -67,6 +67,10 @@ class TrackStore:
         # Largest box width and length seen since birth: a part-view of a large object (a
         # fork tip, a mast past an occluder) keeps the size the track once showed.
         self.max_wl = np.full((cap, 2), np.nan)
+        # Heading in the tracking frame (NaN unknown) and whether motion fixed its direction
+        # (pipeline/track/heading.py); not part of the Tracks snapshot.
+        self.heading = np.full(cap, np.nan)
+        self.heading_resolved = np.zeros(cap, dtype=bool)
         self.next_id = 0
 
     # -- queries ---------------------------------------------------------------------------
@@ -123,6 +127,8 @@ class TrackStore:
         self.size_wl[slots] = np.nan
         self.size_len[slots] = 0
         self.max_wl[slots] = np.nan
+        self.heading[slots] = np.nan
+        self.heading_resolved[slots] = False
         self.record(slots, stamp_s, wl_m, *ends)
         return slots
 

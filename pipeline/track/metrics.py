@@ -4,11 +4,13 @@ Inputs are plain per-frame arrays (:class:`PositionsFrame`: object IDs and posit
 functions score the tracker on the synthetic sequences of the tests, on simulator scenarios
 and on labelled logs. Metrics:
 
-* CLEAR-MOT (Bernardin and Stiefelhagen 2008): per frame, correspondences of the previous
-  frame are kept while within ``match_threshold_m``; the remaining truths and hypotheses are
-  matched by minimum total distance (Hungarian) within the threshold. ID switches count
-  truths matched to a different hypothesis ID than at their last match; MOTA
+* CLEAR-MOT (Bernardin and Stiefelhagen 2008), in py-motmetrics' reading: per frame, each
+  truth keeps the hypothesis of its last match (even across frames where it was missed)
+  while that hypothesis is present and within ``match_threshold_m``; the remaining truths and
+  hypotheses are matched by minimum total distance (Hungarian) within the threshold. ID
+  switches count truths matched to a different hypothesis ID than at their last match; MOTA
   ``1 - (misses + false positives + ID switches) / truths``; MOTP the mean matched distance.
+  py-motmetrics gives the same counts on the same frames (a cross-check of SR-TRK-8, -9).
 * Fragmentation: for each truth, the number of times its tracked segments are interrupted
   and later resume (segments - 1), summed.
 * Position RMSE over all matched pairs.
@@ -108,7 +110,6 @@ def evaluate(
     """CLEAR-MOT, fragmentation, RMSE and mean GOSPA of ``hypotheses`` against ``truth``."""
     if len(truth) != len(hypotheses):
         raise ValueError(f"evaluate: {len(truth)} truth frames but {len(hypotheses)} hypotheses")
-    current: dict[int, int] = {}  # truth id -> hypothesis id matched in the previous frame
     last_match: dict[int, int] = {}  # truth id -> hypothesis id at its last match
     tracked_before: dict[int, bool] = {}
     segments: dict[int, int] = {}
@@ -127,15 +128,22 @@ def evaluate(
             gt.xy_m[:, None, 1] - hy.xy_m[None, :, 1]
         ) ** 2
         pairs: dict[int, int] = {}
-        for g, h in current.items():
-            if g in g_pos and h in h_pos and d2[g_pos[g], h_pos[h]] <= thr2:
+        for g in g_ids:
+            h = last_match.get(g)
+            if (
+                h is not None
+                and h in h_pos
+                and h not in pairs.values()
+                and d2[g_pos[g], h_pos[h]] <= thr2
+            ):
                 pairs[g] = h
         used_h = set(pairs.values())
         free_g = [i for i, g in enumerate(g_ids) if g not in pairs]
         free_h = [j for j, h in enumerate(h_ids) if h not in used_h]
         if free_g and free_h:
-            sub = d2[np.ix_(free_g, free_h)]
-            feasible = sub <= thr2
+            # Minimum total distance (not squared distance), as CLEAR-MOT and py-motmetrics.
+            feasible = d2[np.ix_(free_g, free_h)] <= thr2
+            sub = np.sqrt(d2[np.ix_(free_g, free_h)])
             big = (
                 (float(sub[feasible].max()) + 1.0) * (min(sub.shape) + 1.0)
                 if feasible.any()
@@ -160,7 +168,6 @@ def evaluate(
         n_truth += len(g_ids)
         n_matches += len(pairs)
         n_fp += len(h_ids) - len(pairs)
-        current = pairs
         gospa_sum += gospa(gt.xy_m, hy.xy_m, gospa_c_m, gospa_p)[0]
     n_misses = n_truth - n_matches
     n_frames = len(truth)

@@ -7,6 +7,12 @@ the lifecycle transitions, start tentative tracks on what is left (while live sl
 and report a :class:`pipeline.types.Tracks` snapshot with the per-track features (centroid
 history, deceleration estimate, size variance). Every array is bounded by ``track.max_tracks``,
 ``track.max_dormant`` and ``track.max_detections``, so the cycle's work is bounded.
+
+The associator is the configured one (``track.association``): the Hungarian cascade, or JPDA
+where confirmed tracks share gated detections (:mod:`pipeline.track.jpda`, SR-TRK-8), whose
+tracks are updated with every gated detection at once. Each track also keeps a heading from its
+detections' box axes (:mod:`pipeline.track.heading`, SR-TRK-7), reported beside the snapshot
+(:attr:`Tracker.last_headings`).
 """
 
 from __future__ import annotations
@@ -17,9 +23,11 @@ import numpy as np
 
 from pipeline.config import TrackSection
 from pipeline.frames import Pose, checked_pose, to_parent
-from pipeline.roles import Associator
+from pipeline.roles import Associator, SoftAssociator
 from pipeline.track import kalman
 from pipeline.track.associate import CascadeAssociator, assign, gated_costs
+from pipeline.track.heading import TrackHeadings, update_headings, wrap_pi
+from pipeline.track.jpda import JpdaAssociator, pda_update
 from pipeline.track.lifecycle import FREE, TrackStore, size_compatible
 from pipeline.types import (
     Clusters,
@@ -32,8 +40,21 @@ from pipeline.types import (
     TrackStatus,
 )
 
-__all__ = ["CycleCounts", "Detections", "Tracker", "TrackerError", "detections_in_frame"]
+__all__ = [
+    "SETTLED_HITS_FACTOR",
+    "CycleCounts",
+    "Detections",
+    "Tracker",
+    "TrackerError",
+    "associator_for",
+    "detections_in_frame",
+]
 # CycleCounts, Detections and TrackerError live in pipeline.types (shared with the roles).
+
+SETTLED_HITS_FACTOR = 2
+"""A track's velocity may resolve its heading's flip once it has this many times
+``track.confirm_hits`` updates: a new track's first centroids move as more of the object comes
+into view, which gives a parked vehicle a confident but false velocity."""
 
 
 def detections_in_frame(clusters: Clusters, pose: Pose) -> Detections:
@@ -53,9 +74,21 @@ def detections_in_frame(clusters: Clusters, pose: Pose) -> Detections:
         axis=1,
     )
     moved = np.stack(to_parent(pose, xy[..., 0], xy[..., 1]), axis=2)
+    heading = None if local.heading_rad is None else local.heading_rad + pose[2]
     return replace(
-        local, x_m=moved[:, 0, 0], y_m=moved[:, 0, 1], end_xy_m=moved[:, 1:].reshape(-1, 4)
+        local,
+        x_m=moved[:, 0, 0],
+        y_m=moved[:, 0, 1],
+        end_xy_m=moved[:, 1:].reshape(-1, 4),
+        heading_rad=heading,
     )
+
+
+def associator_for(config: TrackSection) -> Associator:
+    """The association component ``track.association`` names (SR-TRK-8)."""
+    if config.association == "jpda":
+        return JpdaAssociator(config)
+    return CascadeAssociator()
 
 
 class Tracker:
@@ -63,16 +96,23 @@ class Tracker:
 
     def __init__(self, config: TrackSection, associator: Associator | None = None) -> None:
         self.config = config
-        self.associator: Associator = associator if associator is not None else CascadeAssociator()
+        self.associator: Associator = (
+            associator if associator is not None else associator_for(config)
+        )
         self.store = TrackStore(config)
         self.last_stamp_s: float | None = None
         self.last_counts: CycleCounts | None = None
+        self.last_headings: TrackHeadings | None = None
 
     def reset(self) -> None:
-        """Forget every track and the clock: the next step starts afresh."""
+        """Forget every track and the clock (and the associator's learned state)."""
         self.store = TrackStore(self.config)
         self.last_stamp_s = None
         self.last_counts = None
+        self.last_headings = None
+        reset = getattr(self.associator, "reset", None)
+        if callable(reset):
+            reset()
 
     def step(self, detections: Detections) -> Tracks:
         """Run one cycle on ``detections`` (stamped in seconds) and return the snapshot."""
@@ -91,6 +131,11 @@ class Tracker:
         if not (np.all(np.isfinite(det_xy)) and np.all(np.isfinite(det_wl))):
             raise TrackerError("Tracker.step: detections must be finite (x, y, width, length)")
         det_end, det_occ = detections.ends()
+        det_axis = (
+            np.full(detections.n, np.nan)
+            if detections.heading_rad is None
+            else np.asarray(detections.heading_rad)
+        )
         det_index = np.arange(detections.n)
         n_dropped = 0
         if detections.n > c.max_detections:
@@ -99,19 +144,34 @@ class Tracker:
             n_dropped = detections.n - c.max_detections
             det_xy, det_wl = det_xy[det_index], det_wl[det_index]
             det_end, det_occ = det_end[det_index], det_occ[det_index]
+            det_axis = det_axis[det_index]
 
         live = np.flatnonzero(st.live)
         if live.shape[0] and dt > 0.0:
             st.x[live], st.p[live] = kalman.predict(
                 st.x[live], st.p[live], np.full(live.shape[0], dt), c.process_accel_std_mps2
             )
-        _, s_inv = kalman.innovation(st.p[live], c.measurement_std_m)
+        s, s_inv = kalman.innovation(st.p[live], c.measurement_std_m)
         cost = gated_costs(
             st.x[live, :2], s_inv, det_xy, c.gate_euclidean_m, c.gate_mahalanobis_chi2
         )
         status = st.status[live]
         confirmed = (status == TrackStatus.CONFIRMED) | (status == TrackStatus.LOST)
-        match, free = self.associator.associate(cost, [confirmed, status == TrackStatus.TENTATIVE])
+        groups = [confirmed, status == TrackStatus.TENTATIVE]
+        pda = np.zeros(live.shape[0], dtype=bool)
+        if isinstance(self.associator, SoftAssociator):
+            det_s = s[:, 0, 0] * s[:, 1, 1] - s[:, 0, 1] * s[:, 1, 0]
+            log_norm = -np.log(2.0 * np.pi) - 0.5 * np.log(det_s)
+            soft = self.associator.associate_soft(cost, groups, log_norm)
+            match, free, pda = soft.match, soft.free, soft.pda
+            if pda.any():
+                # Every JPDA track is updated with all its gated detections (weights beta).
+                rows = live[pda]
+                st.x[rows], st.p[rows], _ = pda_update(
+                    st.x[rows], st.p[rows], det_xy, soft.beta[pda], c.measurement_std_m
+                )
+        else:
+            match, free = self.associator.associate(cost, groups)
         hit_slots = live[match >= 0]
         hit_dets = match[match >= 0]
         n_confirmed_hits = int(np.count_nonzero(confirmed & (match >= 0)))
@@ -120,16 +180,28 @@ class Tracker:
         free[reid_dets] = False
         slots = np.concatenate([hit_slots, reid_slots])
         dets = np.concatenate([hit_dets, reid_dets])
+        kalman_rows = np.concatenate([~pda[match >= 0], np.ones(reid_slots.shape[0], dtype=bool)])
         st.detection_index[st.status != FREE] = -1
         if slots.shape[0]:
-            x_new, p_new = kalman.update(
-                st.x[slots], st.p[slots], det_xy[dets], c.measurement_std_m
-            )
-            st.x[slots] = st.x_post[slots] = x_new
-            st.p[slots] = st.p_post[slots] = p_new
+            ks, kd = slots[kalman_rows], dets[kalman_rows]
+            if ks.shape[0]:
+                st.x[ks], st.p[ks] = kalman.update(
+                    st.x[ks], st.p[ks], det_xy[kd], c.measurement_std_m
+                )
+            st.x_post[slots] = st.x[slots]
+            st.p_post[slots] = st.p[slots]
             st.last_update_s[slots] = stamp
             st.detection_index[slots] = det_index[dets]
             st.record(slots, stamp, det_wl[dets], det_end[dets], det_occ[dets])
+            st.heading[slots], st.heading_resolved[slots] = update_headings(
+                st.heading[slots],
+                st.heading_resolved[slots],
+                det_axis[dets],
+                st.x[slots, 2:],
+                kalman.largest_std(st.p[slots, 2:, 2:]),
+                st.hits[slots] >= SETTLED_HITS_FACTOR * c.confirm_hits,
+                c,
+            )
         hit = np.zeros(st.capacity, dtype=bool)
         hit[slots] = True
         reidentified = np.zeros(st.capacity, dtype=bool)
@@ -146,7 +218,8 @@ class Tracker:
         if leftover.shape[0]:
             x0, p0 = kalman.initiate(det_xy[leftover], c.measurement_std_m, c.init_velocity_std_mps)
             ends = (det_end[leftover], det_occ[leftover])
-            st.create(x0, p0, stamp, det_wl[leftover], det_index[leftover], ends)
+            born = st.create(x0, p0, stamp, det_wl[leftover], det_index[leftover], ends)
+            st.heading[born] = wrap_pi(det_axis[leftover])
 
         self.last_stamp_s = stamp
         self.last_counts = CycleCounts(
@@ -229,6 +302,9 @@ class Tracker:
         size_var = (dev * dev).sum(axis=1).sum(axis=1) / n_size[:, 0]
         latest_wl = mean if slots.shape[0] == 0 else sizes[:, -1, :]
         dormant = st.status[slots] == TrackStatus.DORMANT
+        self.last_headings = TrackHeadings(
+            st.track_id[slots], st.heading[slots], st.heading_resolved[slots]
+        )
         return Tracks(
             stamp_s=self.last_stamp_s if self.last_stamp_s is not None else 0.0,
             track_id=st.track_id[slots],
@@ -254,3 +330,23 @@ class Tracker:
             history_end_xy_m=st.hist_end[slots],
             history_end_occluded=st.hist_occ[slots],
         )
+
+    def correct(self, track_id: IntArray, state: FloatArray, covariance: FloatArray) -> int:
+        """Replace the filtered state and covariance of the live tracks ``track_id`` by ones
+        another sensor refined at this cycle's stamp (the radar's Doppler and position updates,
+        SR-FUS-7), so the refinement persists into the next prediction; returns how many were
+        written. Dormant and unknown IDs are left alone. A track updated by this cycle's scan
+        keeps the refined state as its last posterior too."""
+        st = self.store
+        ids = np.asarray(track_id, dtype=np.int64)
+        live = np.flatnonzero(st.live)
+        slot_of = dict(zip(st.track_id[live].tolist(), live.tolist(), strict=True))
+        rows = [(k, slot_of[i]) for k, i in enumerate(ids.tolist()) if i in slot_of]
+        if not rows:
+            return 0
+        k, slots = (np.array(v, dtype=np.int64) for v in zip(*rows, strict=True))
+        st.x[slots], st.p[slots] = state[k], covariance[k]
+        now = self.last_stamp_s
+        updated = slots[st.last_update_s[slots] == now]
+        st.x_post[updated], st.p_post[updated] = st.x[updated], st.p[updated]
+        return int(slots.shape[0])

@@ -294,6 +294,8 @@ class Detections:
     Optionally the clusters' ends: ``end_xy_m`` (n, 4) ``[x0, y0, x1, y1]`` and
     ``end_occluded`` (n, 2) (:mod:`pipeline.shape.ends`). The tracker only keeps them in the
     tracks' histories for the classifier's features; without them those entries are NaN.
+    Optionally ``heading_rad`` (n,): each box's axis (its longer side, modulo pi), from which
+    the tracker keeps a heading per track (:mod:`pipeline.track.heading`, SR-TRK-7).
     """
 
     stamp_s: float
@@ -303,6 +305,7 @@ class Detections:
     length_m: FloatArray
     end_xy_m: FloatArray | None = None
     end_occluded: BoolArray | None = None
+    heading_rad: FloatArray | None = None
 
     def __post_init__(self) -> None:
         for name in ("x_m", "y_m", "width_m", "length_m"):
@@ -319,10 +322,15 @@ class Detections:
                 raise TrackerError(
                     f"Detections: end_xy_m must have shape {(*n, 4)} and end_occluded {(*n, 2)}"
                 )
+        if self.heading_rad is not None:
+            object.__setattr__(self, "heading_rad", frozen_array(self.heading_rad))
+            if self.heading_rad.shape != n:
+                raise TrackerError(f"Detections: heading_rad must have shape {n}")
 
     @classmethod
     def from_clusters(cls, clusters: Clusters) -> Detections:
-        """Centroids, oriented-box sizes and ends of the kept clusters (scanner frame)."""
+        """Centroids, oriented-box sizes, ends and box axes of the kept clusters (scanner
+        frame)."""
         return cls(
             clusters.stamp_s,
             clusters.centroid_x_m,
@@ -331,6 +339,7 @@ class Detections:
             clusters.length_m,
             np.stack([clusters.end_x_m, clusters.end_y_m], axis=2).reshape(-1, 4),
             clusters.end_occluded,
+            clusters.heading_rad,
         )
 
     def ends(self) -> tuple[FloatArray, FloatArray]:
@@ -344,6 +353,21 @@ class Detections:
     def n(self) -> int:
         """Number of detections."""
         return int(self.x_m.shape[0])
+
+
+@dataclass(frozen=True, slots=True)
+class SoftAssociation:
+    """One cycle's association by a probabilistic associator (:mod:`pipeline.track.jpda`,
+    SR-TRK-8). ``match`` (tracks,): each track's detection for the bookkeeping (-1 none);
+    ``free`` (detections,): left for tentative tracks and births; ``pda`` (tracks,): the tracks
+    updated with every gated detection at once (:func:`pipeline.track.jpda.pda_update`) with
+    ``beta`` (tracks, detections + 1; column 0 the missed-detection probability, zero rows
+    elsewhere)."""
+
+    match: IntArray
+    free: BoolArray
+    pda: BoolArray
+    beta: FloatArray
 
 
 @dataclass(frozen=True, slots=True)
