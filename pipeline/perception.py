@@ -17,6 +17,10 @@ compensation yet), so a frame with radar and a moving pose is refused.
 
 Each stage is timed by a :class:`Stopwatch`; a stage that raises ends the call with
 :class:`StageError`, which names the stage and carries what the earlier stages produced.
+
+:class:`PerceptionChain` is what the runtime needs of a chain; besides :class:`Perception`, the
+ground-truth chain of :mod:`pipeline.oracle` (the simulator's true objects as tracks and
+predictions, the availability oracle) is one.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from typing import Protocol
 
 from pipeline.classify.model import Classifier
 from pipeline.cluster.dbscan import DbscanClusterer
@@ -47,6 +52,8 @@ from pipeline.roles import (
     TrackerRole,
 )
 from pipeline.shape.box import BoxShapes
+from pipeline.shape.lshape import LShapeShapes
+from pipeline.track.heading import TrackHeadings
 from pipeline.track.tracker import Tracker, detections_in_frame
 from pipeline.types import (
     Classification,
@@ -65,6 +72,7 @@ __all__ = [
     "STAGES",
     "Perceived",
     "Perception",
+    "PerceptionChain",
     "PerceptionError",
     "StageError",
     "Stopwatch",
@@ -128,7 +136,8 @@ class Tracked:
     """The tracking half of the chain for one frame (tracking frame placed by ``pose``).
 
     ``points`` and ``clusters`` are in the robot frame; ``tracks`` and ``features`` in the
-    tracking frame; ``counts`` is the tracker's account of the cycle.
+    tracking frame; ``counts`` is the tracker's account of the cycle; ``headings`` each track's
+    heading (same rows as ``tracks``) when the tracker keeps one (SR-TRK-7).
     """
 
     frame: Frame
@@ -138,6 +147,7 @@ class Tracked:
     tracks: Tracks
     counts: CycleCounts | None
     features: TrackFeatures
+    headings: TrackHeadings | None = None
 
 
 @dataclass(frozen=True)
@@ -173,6 +183,20 @@ class Perceived:
         return self.tracked.features
 
 
+class PerceptionChain(Protocol):
+    """What the runtime calls once per frame: :meth:`Perception.perceive` and ``reset``."""
+
+    def perceive(
+        self,
+        frame: Frame,
+        *,
+        now_s: Callable[[], float] | None = None,
+        watch: Stopwatch | None = None,
+    ) -> Perceived: ...
+
+    def reset(self) -> None: ...
+
+
 @dataclass(frozen=True)
 class Perception:
     """The perception chain, one component per role (module docstring).
@@ -199,7 +223,9 @@ class Perception:
         guard: FreshnessGuard | None = None,
         tracking_only: bool = False,
     ) -> Perception:
-        """The default chain for ``config``, each stage given its own section.
+        """The chain ``config`` describes, each stage given its own section; the shape
+        estimator is ``cluster.shape_estimator``'s, the tracker's associator
+        ``track.association``'s.
 
         ``classifier`` defaults to the configured model (hash-checked); fusion needs the
         freshness ``guard``, a safety formula (:func:`safety.model.freshness.is_fresh`).
@@ -208,7 +234,11 @@ class Perception:
         chain = cls(
             scan_filter=RangeFilter(config.scan),
             clusterer=DbscanClusterer(config.cluster),
-            shapes=BoxShapes(config.cluster),
+            shapes=(
+                LShapeShapes(config.cluster)
+                if config.cluster.shape_estimator == "lshape"
+                else BoxShapes(config.cluster)
+            ),
             tracker=Tracker(config.track),
             features=TrackFeatureExtractor(config.predict),
         )
@@ -257,7 +287,8 @@ class Perception:
                 features = self.features.features(tracks, clusters, (pose[0], pose[1]))
         except Exception as exc:  # the caller decides (the runtime: STOP naming the stage)
             raise StageError(watch.current, exc, Partial(points, clusters, counts)) from exc
-        return Tracked(frame, pose, points, clusters, tracks, counts, features)
+        headings = getattr(self.tracker, "last_headings", None)
+        return Tracked(frame, pose, points, clusters, tracks, counts, features, headings)
 
     def perceive(
         self,

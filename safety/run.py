@@ -22,7 +22,7 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -42,6 +42,7 @@ from safety.runtime import CycleInput, CycleOutput, Runtime
 
 __all__ = [
     "RunSummary",
+    "Stepper",
     "contact_speeds",
     "cycle_input",
     "run",
@@ -49,6 +50,13 @@ __all__ = [
     "run_scenario",
     "run_simulation",
 ]
+
+
+class Stepper(Protocol):
+    """What decides once per frame: the :class:`~safety.runtime.Runtime`, or a baseline policy
+    (:class:`safety.baseline.Nav2Baseline`) run in the same loop."""
+
+    def step(self, inp: CycleInput) -> CycleOutput: ...
 
 
 @dataclass
@@ -145,21 +153,29 @@ def cycle_input(frame: Frame, config: SafecaseConfig, charge_s: float | None) ->
 def run(
     config: SafecaseConfig,
     source: FrameSource,
-    runtime: Runtime,
+    runtime: Stepper,
     *,
     max_scans: int | None = None,
     duration_s: float | None = None,
     measured_clock: bool = False,
+    observe: Callable[[CycleInput, CycleOutput], None] | None = None,
 ) -> Iterator[CycleOutput]:
     """One cycle per frame of ``source`` (module docstring), until the source ends, after
-    ``max_scans`` frames with a scan, or once ``duration_s`` of its clock has passed."""
+    ``max_scans`` frames with a scan, or once ``duration_s`` of its clock has passed.
+
+    ``observe(inp, out)``, when given, sees every cycle's input and output before the command
+    goes out (a shadow deciding on the same frames without driving the robot:
+    :mod:`safety.availability`)."""
     charge_s = None if (source.live or measured_clock) else config.runtime.sim_cycle_s
     closed_loop = source if isinstance(source, ClosedLoopSource) else None
     first_s: float | None = None
     n_scans = 0
     for frame in source.frames():
         first_s = frame.received_s if first_s is None else first_s
-        out = runtime.step(cycle_input(frame, config, charge_s))
+        inp = cycle_input(frame, config, charge_s)
+        out = runtime.step(inp)
+        if observe is not None:
+            observe(inp, out)
         if closed_loop is not None:
             closed_loop.command(out.command.speed_mps, out.record.observation.now_s)
         yield out
@@ -176,11 +192,12 @@ def run_audited(
     *,
     audit_path: Path | None,
     params: StoppingParams | None = None,
-    runtime: Runtime | None = None,
+    runtime: Stepper | None = None,
     max_scans: int | None = None,
     duration_s: float | None = None,
     measured_clock: bool = False,
     recording: Path | None = None,
+    observe: Callable[[CycleInput, CycleOutput], None] | None = None,
 ) -> Iterator[CycleOutput]:
     """:func:`run` with one audit record per cycle in ``audit_path`` (none when None) and,
     with ``recording``, every cycle in that MCAP file for Foxglove (:mod:`safety.foxglove`,
@@ -191,16 +208,20 @@ def run_audited(
     function is called: a key that cannot be used raises
     :class:`~safety.audit.keys.SigningKeyError` naming its path before any cycle runs and
     before the log is created. A live source's log is written off the cycle's thread (fsync
-    stalls of 15-100 ms here).
+    stalls of 15-100 ms here). An audit log needs a :class:`~safety.runtime.Runtime` (its
+    records replay); ``observe`` is :func:`run`'s.
     """
     from safety.audit.log import signing_key_for
 
+    if audit_path is not None and runtime is not None and not isinstance(runtime, Runtime):
+        raise ValueError(f"run_audited: an audit log needs a Runtime, got {type(runtime).__name__}")
     key = signing_key_for(config.audit) if audit_path is not None else None
 
     def cycles() -> Iterator[CycleOutput]:
         rt = runtime if runtime is not None else Runtime(config, params=params)
         with contextlib.ExitStack() as stack:
             if audit_path is not None:
+                assert isinstance(rt, Runtime)
                 writer = stack.enter_context(
                     AuditWriter(
                         audit_path,
@@ -224,6 +245,7 @@ def run_audited(
                 max_scans=max_scans,
                 duration_s=duration_s,
                 measured_clock=measured_clock,
+                observe=observe,
             ):
                 if recorder is not None:
                     recorder.write(scene_of(out, config))
@@ -237,12 +259,16 @@ def run_simulation(
     sim: Simulation,
     *,
     params: StoppingParams | None = None,
-    runtime: Runtime | None = None,
+    runtime: Stepper | None = None,
     audit_path: Path | None = None,
     progress: Callable[[int, int], None] | None = None,
     measured_clock: bool = False,
+    observe: Callable[[CycleInput, CycleOutput], None] | None = None,
 ) -> RunSummary:
-    """Run ``sim`` to its end with the runtime deciding after every scan (module docstring)."""
+    """Run ``sim`` to its end with the runtime deciding after every scan (module docstring).
+
+    ``observe`` is :func:`run`'s.
+    """
     source = SimSource(sim)
     summary = RunSummary(sim.name, audit_path=audit_path)
     for out in run_audited(
@@ -252,6 +278,7 @@ def run_simulation(
         params=params,
         runtime=runtime,
         measured_clock=measured_clock,
+        observe=observe,
     ):
         summary.add(out)
         if progress is not None:

@@ -1,6 +1,9 @@
-"""A picture of one closed-loop run: speeds and commands over time, separations (SR-RUN-1)."""
+"""A picture of one closed-loop run: speeds and commands over time, separations (SR-RUN-1);
+with the oracle's and the baseline's runs on the same seed, their speeds too (SR-AVL-1)."""
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import matplotlib
 
@@ -10,12 +13,24 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from pipeline.sources.sim.simulation import SimResult
 from safety.run import RunSummary, contact_speeds
 
+# Colours of the other runs' speeds, by role.
+_OTHERS = {"oracle": "tab:green", "baseline": "tab:purple"}
 
-def run_figure(summary: RunSummary) -> Figure:
+
+def run_figure(
+    summary: RunSummary,
+    others: Mapping[str, SimResult] | None = None,
+    nuisance_t_s: tuple[float, ...] = (),
+) -> Figure:
     """Two panels: the robot's speed and the command in force [m/s] over time, with the
-    stopping commands shaded; below, the distance from the robot to every object [m]."""
+    stopping commands shaded; below, the distance from the robot to every object [m].
+
+    ``others`` adds the speed of other runs of the same scenario and seed by role (the oracle,
+    the baseline: :mod:`safety.availability`); ``nuisance_t_s`` marks the decision times of
+    nuisance STOPs (we stop, the oracle in that situation would not)."""
     sim = summary.sim
     if sim is None:
         raise ValueError("run_figure: the run has no simulation result")
@@ -23,6 +38,21 @@ def run_figure(summary: RunSummary) -> Figure:
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
     top.step(log["t_s"], log["command_mps"], where="post", color="tab:orange", label="command")
     top.plot(log["t_s"], log["speed_mps"], color="tab:blue", label="robot speed")
+    for role, other in (others or {}).items():
+        olog = other.ego_log
+        colour = _OTHERS.get(role, "tab:gray")
+        top.plot(olog["t_s"], olog["speed_mps"], color=colour, linewidth=1.2, label=f"{role} speed")
+    if nuisance_t_s:
+        top.plot(
+            nuisance_t_s,
+            [1.02] * len(nuisance_t_s),
+            "v",
+            color="tab:red",
+            markersize=4,
+            transform=top.get_xaxis_transform(),
+            clip_on=False,  # above the axes, where no speed is drawn
+            label="nuisance STOP",
+        )
     stopped = log["command_mps"] == 0.0
     top.fill_between(
         log["t_s"],

@@ -13,7 +13,9 @@ What the governor is given, per cycle:
 
 - one row per prediction row: the free distance along the path to the predicted zone (the
   reach region grown by the body, no margin: the governor applies the margin tier), the
-  envelope's closing speed, confidence and near-reversal flag;
+  envelope's closing speed (for moving objects other than people, direction-aware: the
+  largest component along the path towards the robot of any velocity their cone allows,
+  :mod:`safety.closing`, SR-AVL-5), confidence and near-reversal flag;
 - one row per thermal-only pedestrian: a disc of ``runtime.person_radius_m`` grown by the
   walking speed over the horizon and the detection's age, closing at the person speed, with
   the pedestrian's (low) confidence;
@@ -32,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -42,7 +44,14 @@ from pipeline.config import SafecaseConfig
 from pipeline.errors import SafecaseError
 from pipeline.frames import Pose, to_parent
 from pipeline.perception import STAGES as PERCEPTION_STAGES
-from pipeline.perception import Partial, Perceived, Perception, StageError, Stopwatch
+from pipeline.perception import (
+    Partial,
+    Perceived,
+    Perception,
+    PerceptionChain,
+    StageError,
+    Stopwatch,
+)
 from pipeline.types import (
     Action,
     Command,
@@ -55,6 +64,8 @@ from pipeline.types import (
     ThermalDetections,
 )
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
+from safety.bodies import StillHulls, hull_bodies
+from safety.closing import directed_closing
 from safety.geometry.costmap import Costmap, CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
 from safety.geometry.path import PathAhead, PathClearance, PathDistances
@@ -74,7 +85,15 @@ from safety.obstacles import (
     still_zones,
 )
 
-__all__ = ["STAGES", "CycleDetail", "CycleInput", "CycleInputError", "CycleOutput", "Runtime"]
+__all__ = [
+    "STAGES",
+    "CycleDetail",
+    "CycleInput",
+    "CycleInputError",
+    "CycleOutput",
+    "Levers",
+    "Runtime",
+]
 
 # The perception chain's stages, then the safety side's (the decision is timed as "decide").
 STAGES = (*PERCEPTION_STAGES, "envelopes", "path", "planner", "costmap")
@@ -159,12 +178,26 @@ class CycleOutput:
     detail: CycleDetail | None = None
 
 
+@dataclass(frozen=True)
+class Levers:
+    """The availability levers (SR-AVL-5, SR-AVL-6), each proved or argued not to weaken a
+    safety obligation: ``directed_closing`` (:mod:`safety.closing`) and ``outline_bodies``
+    (:mod:`safety.bodies`)."""
+
+    directed_closing: bool = True
+    outline_bodies: bool = True
+
+
 class Runtime:
     """The cycle loop's state for one configuration: the perception chain, the safety stages'
     builders and checkers, the audit writer.
 
     ``params`` overrides the stopping parameters (a measured latency bound); ``classifier``
     defaults to the configured model (hash-checked); ``writer`` receives one record per cycle.
+    ``perception`` replaces the configured chain (the ground truth of
+    :class:`pipeline.oracle.GroundTruthPerception`: the availability oracle, SR-AVL-1); the
+    safety side, the governor and the monitors stay the same. ``levers`` switches the
+    availability levers (all on by default; off only to measure what each one buys).
     """
 
     def __init__(
@@ -174,18 +207,26 @@ class Runtime:
         params: StoppingParams | None = None,
         classifier: Classifier | None = None,
         writer: AuditWriter | BackgroundAuditWriter | None = None,
+        perception: PerceptionChain | None = None,
+        levers: Levers | None = None,
     ) -> None:
         self.config = config
+        self.levers = levers if levers is not None else Levers()
         self.params = params if params is not None else StoppingParams.from_config(config)
         self.classifier = (
             classifier if classifier is not None else Classifier.from_config(config.classify)
         )
         self.governor = Governor(config.governor, self.params)
-        self.perception = Perception.from_config(config, classifier=self.classifier, guard=is_fresh)
+        self.perception: PerceptionChain = (
+            perception
+            if perception is not None
+            else Perception.from_config(config, classifier=self.classifier, guard=is_fresh)
+        )
         self.envelopes = EnvelopeBuilder(config.predict, self.params)
         self.clearance = PathClearance(config.geometry)
         self.planner = SweptPathChecker(config.geometry)
         self.costmap = CostmapBuilder(config.costmap)
+        self.still_hulls = StillHulls(config.track.dormant_after_misses)
         self.writer = writer
         self.previous_now_s: float | None = None
         # When the STOP in force was decided (None while moving) and the braking it buys.
@@ -315,12 +356,22 @@ class Runtime:
             )
         with watch.stage("path"):
             zones = still_zones(pred, fused.tracks, clusters, pose, config.predict)
+            if self.levers.outline_bodies:
+                # A still object not seen this cycle keeps its last hull (SR-AVL-6).
+                zones = self.still_hulls.zones(
+                    zones, pred, fused.tracks, clusters, pose, config.predict
+                )
             loose = clusters.point_labels < 0
             dist = self.clearance.free_distances(
                 inp.path, zones, *to_parent(pose, points.x_m[loose], points.y_m[loose])
             )
             unknown = pred.mode == int(PredictionMode.UNKNOWN)
             here = bodies_now(pred, fused.tracks, unknown, config.predict.disc_sides)
+            if self.levers.outline_bodies:
+                # An object of unknown motion seen this cycle is its cluster's hull (SR-AVL-6).
+                here = hull_bodies(
+                    unknown, here, pred, fused.tracks, clusters, pose, config.predict
+                )
             free = dist.zone_free_m.copy()
             free[unknown] = self.clearance.distances_now(inp.path, here)
             ped_free = self.clearance.distances_now(inp.path, ped_zones)
@@ -354,6 +405,11 @@ class Runtime:
                     "occupied_cells": int(np.count_nonzero(grid.occupied)),
                     "clipped": grid.n_clipped,
                 }
+        if self.levers.directed_closing:
+            # Moving objects close in at most at their speed's component along the path
+            # (SR-AVL-5).
+            closing = directed_closing(env, pred, fused.tracks, names, inp.path, free, self.params)
+            env = replace(env, closing_speed_mps=closing)
         inputs = governor_rows(
             inp.now_s, env, fused, free, ped_free, dist, self.params, config.runtime.loose_points
         )

@@ -10,16 +10,16 @@ from __future__ import annotations
 import contextlib
 import math
 import signal
-from collections.abc import Generator, Iterator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
+from evidence.cli.availability import compared, report_comparison, scan_progress
+from evidence.cli.common import ConfigOption, fail, load_config_or_exit, out, stamp
 from pipeline.config import SafecaseConfig, config_hash, overridden
 from pipeline.errors import SafecaseError
 from pipeline.sources import FrameSource
@@ -30,9 +30,10 @@ from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED
 from pipeline.sources.sim.source import SimSource
 from safety.run import RunSummary, contact_speeds, run_audited
-from safety.runtime import CycleOutput
+from safety.runtime import CycleInput, CycleOutput, Runtime
 
 DEFAULT_DEVICE_SCANS = 100
+Observer = Callable[[CycleInput, CycleOutput], None]
 EMULATORS = ("rplidar", "scip")
 
 
@@ -100,6 +101,15 @@ def run_command(
         bool,
         typer.Option(help="Charge each cycle its measured time (not reproducible)."),
     ] = False,
+    compare: Annotated[
+        bool,
+        typer.Option(
+            "--compare/--no-compare",
+            help="Simulator: also run the ground-truth oracle and the Nav2-style baseline on "
+            "the same seed; print progress against the oracle and nuisance STOPs, and draw all "
+            "three speeds (about three times the run's time).",
+        ),
+    ] = False,
     config: ConfigOption = None,
 ) -> None:
     """Run the audited runtime: scan -> clusters -> tracks -> classes -> envelopes -> path
@@ -107,7 +117,8 @@ def run_command(
 
     Examples: safecase run --scenario crossing_pedestrian --seed 3;
     safecase run --emulate rplidar --scans 50; safecase run --log walk.bag --odom-topic /odom;
-    safecase run --scenario forklift_pass_by --mcap pass.mcap
+    safecase run --scenario forklift_pass_by --mcap pass.mcap;
+    safecase run --scenario pallet_jack_slow --duration 15 --compare
 
     Exit codes: 0 done, or stopped by Ctrl-C or SIGTERM (the audit log is closed either way);
     1 the simulated robot touched something while moving; 2 bad options, configuration, log,
@@ -124,6 +135,10 @@ def run_command(
         fail(f"--seed {seed}: allowed: an integer >= 0")
     if log is None and (scan_topic or odom_topic or restamp is not None):
         fail("--scan-topic, --odom-topic and --restamp apply to --log only")
+    if compare and chosen:
+        fail(f"--compare applies to simulator runs only, not to {chosen[0]}")
+    if compare and scans is not None:
+        fail("--compare runs the whole scenario: give its length with --duration, not --scans")
     name = scenario or cfg.sim.scenario
     if name not in SCENARIOS:
         fail(f"--scenario {name!r}: unknown; known: {', '.join(SCENARIOS)}")
@@ -151,16 +166,38 @@ def run_command(
                 return
             sim = make_simulation(cfg, name, seed, duration)
             target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
-            summary = _run_recorded(cfg, SimSource(sim), target, scans, None, measured_clock, mcap)
+            comparison = None
+            if compare:
+
+                def ours(
+                    rt: Runtime, observe: Callable[[CycleInput, CycleOutput], None]
+                ) -> RunSummary:
+                    source = SimSource(sim)
+                    return _run_recorded(
+                        cfg, source, target, None, None, measured_clock, mcap, rt, observe
+                    )
+
+                comparison = compared(cfg, sim, duration, ours)
+                summary = comparison.ours
+            else:
+                summary = _run_recorded(
+                    cfg, SimSource(sim), target, scans, None, measured_clock, mcap
+                )
         except (SafecaseError, ValueError, OSError) as exc:
             fail(str(exc))
         _report(cfg, summary, None)
+        if comparison is not None:
+            report_comparison(comparison)
         _recorded(mcap)
         if plot and summary.sim is not None:
             from safety.run_plot import run_figure
 
             png = target.with_suffix(".png")
-            run_figure(summary).savefig(png, dpi=110)
+            if comparison is not None:
+                figure = run_figure(summary, comparison.others(), comparison.nuisance_times_s())
+            else:
+                figure = run_figure(summary)
+            figure.savefig(png, dpi=110)
             out.print(f"plot: {png}", highlight=False)
         if summary.moving_contacts:
             out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
@@ -284,19 +321,14 @@ def _run_recorded(
     duration_s: float | None,
     measured_clock: bool,
     mcap: Path | None,
+    runtime: Runtime | None = None,
+    observe: Observer | None = None,
 ) -> RunSummary:
-    """The simulator or a log, with a progress bar; the summary holds the simulator's verdict."""
+    """The simulator or a log, with a progress bar; the summary holds the simulator's verdict.
+    ``runtime`` and ``observe`` are :func:`safety.run.run_audited`'s."""
     summary = RunSummary(source.name, audit_path=target)
     total = source.n_frames if isinstance(source, SimSource) else None
-    with Progress(
-        TextColumn(f"[bold]{source.name}[/]"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("scans"),
-        TimeElapsedColumn(),
-        console=err,
-        transient=True,
-    ) as bar:
+    with scan_progress(source.name) as bar:
         task = bar.add_task("run", total=total)
         outputs = _generator(
             run_audited(
@@ -307,6 +339,8 @@ def _run_recorded(
                 duration_s=duration_s,
                 measured_clock=measured_clock,
                 recording=mcap,
+                runtime=runtime,
+                observe=observe,
             )
         )
         try:

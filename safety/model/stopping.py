@@ -33,6 +33,15 @@ time ``T`` plus an intrusion allowance ``C``. For a moving machine the overall s
 C``, which is ``S(v)`` with ``V = K`` and ``C = 0``. :func:`iso13855_distance_m` is the
 standard's form; the evidence shows all three side by side for the configured parameters.
 
+Direction-aware closing speed (SR-AVL-5): the obstacle's speed ``V`` above is how fast it closes
+in along the robot's path. An object whose velocity lies in a cone of half-angle ``gamma`` about
+its heading, at speed at most ``s``, has no velocity whose component along a unit direction ``d``
+exceeds ``s max(0, cos(max(0, theta - gamma)))``, with ``theta`` the angle between the heading
+and ``d`` (:func:`directed_closing_mps`, written with cosines and sines so that it stays
+arithmetic; z3 proves the bound for every velocity in the cone, and that it never exceeds
+``max(static, s)``, the closing speed without direction). A forklift driving away along the
+path closes at 0.
+
 Every function here uses only ``+ - * /``, comparisons and the helpers of
 :mod:`safety.model.readings`, so it evaluates with floats, Fractions, numpy arrays and z3 terms.
 """
@@ -52,6 +61,7 @@ __all__ = [
     "ClosingClass",
     "StoppingParams",
     "Tier",
+    "directed_closing_mps",
     "iso13855_distance_m",
     "keymaera_separation_m",
     "robot_stopping_distance_m",
@@ -144,6 +154,30 @@ def safe_speed_mps(
     gamma = separation_m(0 * reaction_s, reaction_s, accel_mps2, decel_mps2, closing_mps)
     slack = maximum(distance_m - gamma, 0 * reaction_s)
     return 2 * slack / (beta + sqrt(beta * beta + 2 * slack / decel_mps2))
+
+
+def directed_closing_mps(
+    speed_mps: Real,
+    cos_offset: Real,
+    sin_offset_abs: Real,
+    cos_half: Real,
+    sin_half: Real,
+    static_mps: Real,
+) -> Real:
+    """Largest component [m/s] along a direction ``d`` of any velocity of speed at most
+    ``speed_mps`` whose direction lies within a cone about a heading, at least ``static_mps``
+    (SR-AVL-5; module docstring).
+
+    ``cos_offset`` and ``sin_offset_abs`` are the cosine and the absolute sine of the angle
+    ``theta`` from the heading to ``d``; ``cos_half`` and ``sin_half`` (``>= 0``) those of the
+    cone's half-angle ``gamma`` in ``[0, pi]``. When ``d`` lies inside the cone a velocity may
+    point straight along it; otherwise the nearest edge of the cone is at ``theta - gamma``,
+    and ``cos(theta - gamma) = cos theta cos gamma + sin theta sin gamma``.
+    """
+    inside = cos_offset >= cos_half
+    edge = cos_offset * cos_half + sin_offset_abs * sin_half
+    along = select(inside, 1 + 0 * edge, edge)
+    return maximum(static_mps, speed_mps * maximum(along, 0 * along))
 
 
 def tier_value(

@@ -28,7 +28,7 @@ import pytest
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig, default_config, overridden
 from pipeline.frames import to_child
-from pipeline.perception import Perception
+from pipeline.perception import Perception, PerceptionChain
 from pipeline.sources.logs.bags import read_bag
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.thermal import thermal_from_truth
@@ -110,7 +110,7 @@ def _spied(rt: Runtime) -> dict[str, Any]:
         )
         return out
 
-    rt.perception = _Spy(rt.perception, spy)  # type: ignore[assignment]
+    rt.perception = _Spy(rt.perception, spy)
     return seen
 
 
@@ -204,9 +204,12 @@ def _bench_cycles(config: SafecaseConfig, fusion: Counter[str]) -> list[dict[str
 class _Spy:
     """A perception chain whose ``perceive`` goes through ``spy`` (everything else as is)."""
 
-    def __init__(self, chain: Perception, spy: Any) -> None:
+    def __init__(self, chain: PerceptionChain, spy: Any) -> None:
         self._chain = chain
         self.perceive = spy
+
+    def reset(self) -> None:
+        self._chain.reset()
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._chain, name)
