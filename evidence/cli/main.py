@@ -19,6 +19,7 @@ from rich.text import Text
 
 from evidence.catalogue import load_catalogue
 from evidence.cli.audit import app as audit_app
+from evidence.cli.campaign import campaign_command
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
 from evidence.cli.mcap import app as mcap_app
 from evidence.cli.nav2 import app as nav2_app
@@ -47,6 +48,7 @@ app.add_typer(nav2_app, name="nav2")
 app.add_typer(mcap_app, name="mcap")
 app.command("train")(train_command)
 app.command("run")(run_command)
+app.command("campaign")(campaign_command)
 
 PROFILES = ("dev", "ci", "certify")
 

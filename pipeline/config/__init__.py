@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
@@ -22,6 +21,7 @@ from annotated_types import Ge, Gt, Le, Lt
 from pydantic import BaseModel, ValidationError, model_validator
 from pydantic.fields import FieldInfo
 
+from pipeline.compat import tomllib
 from pipeline.config.base import Section
 from pipeline.config.sections_perception import (
     ClassifySection,
@@ -41,11 +41,13 @@ from pipeline.config.sections_safety import (
     RuntimeSection,
     StoppingSection,
 )
-from pipeline.config.sections_sim import SimSection
+from pipeline.config.sections_sensors import RadarSection, ThermalSection
+from pipeline.config.sections_sim import CampaignSection, SimSection
 from pipeline.errors import ConfigError
 
 __all__ = [
     "AuditSection",
+    "CampaignSection",
     "ClassifySection",
     "ClusterSection",
     "CostmapSection",
@@ -55,11 +57,13 @@ __all__ = [
     "GovernorSection",
     "MonitorSection",
     "PredictSection",
+    "RadarSection",
     "RuntimeSection",
     "SafecaseConfig",
     "ScanSection",
     "SimSection",
     "StoppingSection",
+    "ThermalSection",
     "TrackSection",
     "config_hash",
     "default_config",
@@ -86,8 +90,11 @@ class SafecaseConfig(Section):
     fusion: FusionSection = FusionSection()
     monitors: MonitorSection = MonitorSection()
     sim: SimSection = SimSection()
+    campaign: CampaignSection = CampaignSection()
     audit: AuditSection = AuditSection()
     runtime: RuntimeSection = RuntimeSection()
+    thermal: ThermalSection = ThermalSection()
+    radar: RadarSection = RadarSection()
 
     @model_validator(mode="after")
     def _monitor_enforces_the_proved_latency(self) -> SafecaseConfig:

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Literal, Self
+from typing import Literal
 
 from pydantic import Field, model_validator
 
+from pipeline.compat import Self
 from pipeline.config.base import Section
 
 ClosingClassName = Literal["static", "person", "forklift_reversing"]
@@ -189,9 +190,12 @@ class RuntimeSection(Section):
     ``path_step_m`` up to ``path_lookahead_m`` (:mod:`safety.geometry.path`); the lookahead should
     cover the stopping distance at the robot's maximum speed against the fastest closing class, or
     the governor holds the robot below that speed. Thermal-only pedestrians are discs of
-    ``person_radius_m``. Scan points outside every kept cluster count as static structure of unknown
-    class (``loose_points``: ``"static"``, closing speed ``stopping.static_speed_mps``) or as the
-    fastest class (``"worst"``). ``planner_check`` and ``costmap`` run the swept-path check of the
+    ``person_radius_m``. Scan points on the path outside every kept cluster close in at the fastest
+    class's speed (``loose_points = "worst"``, the default): they may be a moving object that
+    clustering merged with structure into a cluster too large to keep (a forklift beside racking
+    did exactly that in a campaign, SR-RUN-8). ``"static"`` (closing speed
+    ``stopping.static_speed_mps``) is sound only where every such point is fixed structure.
+    ``planner_check`` and ``costmap`` run the swept-path check of the
     candidate grid and the costmap every cycle (recorded, for a planner; the candidate grid costs
     10-30 ms here, so it is off by default). In closed-loop simulation every cycle takes
     ``sim_cycle_s`` on the simulated clock.
@@ -200,7 +204,7 @@ class RuntimeSection(Section):
     path_lookahead_m: float = Field(6.0, gt=0.0, le=100.0)
     path_step_m: float = Field(0.05, gt=0.0, le=1.0)
     person_radius_m: float = Field(0.3, gt=0.0, le=2.0)
-    loose_points: Literal["static", "worst"] = "static"
+    loose_points: Literal["static", "worst"] = "worst"
     planner_check: bool = False
     costmap: bool = True
     sim_cycle_s: float = Field(0.05, ge=0.0, le=1.0)

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Literal, Self
+from typing import Literal
 
 from pydantic import Field, model_validator
 
+from pipeline.compat import Self
 from pipeline.config.base import Section
 
 
@@ -66,3 +67,14 @@ class SimSection(Section):
                 f"exceed sim.label_near_reversal_speed_mps ({self.label_near_reversal_speed_mps})"
             )
         return self
+
+
+class CampaignSection(Section):
+    """Targets of closed-loop campaigns (SR-RUN-8; ``safecase campaign``).
+
+    ``max_contact_rate``: the one-sided 95 % Clopper-Pearson upper bound on the per-run rate of
+    contacts while moving must stay below this; zero contacts in ``n`` runs bound the rate at
+    about ``3 / n``, so the default 0.01 needs at least 299 runs without one.
+    """
+
+    max_contact_rate: float = Field(0.01, gt=0.0, lt=1.0)

@@ -14,16 +14,16 @@ to plan positions when blocks are put together.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.config import SafecaseConfig
+from pipeline.errors import SafecaseError
 from pipeline.features import FEATURE_NAMES
 from pipeline.sources.sim.scenarios import SCENARIOS
 from pipeline.training.data import DRILL, Rows, RunSpec, load_rows, run_rows, save_rows
@@ -32,6 +32,7 @@ __all__ = [
     "BLOCK_RUNS",
     "NAMED",
     "ROW_SECTIONS",
+    "TrainingDataError",
     "cached_rows",
     "concat_rows",
     "data_plan",
@@ -43,6 +44,10 @@ __all__ = [
 ROW_SECTIONS = ("scan", "cluster", "track", "predict", "sim", "stopping")
 NAMED = tuple(n for n in SCENARIOS if n != "random_encounter")
 BLOCK_RUNS = 50
+
+
+class TrainingDataError(SafecaseError):
+    """A run of a data plan that raised: training stops naming it."""
 
 
 def data_plan(
@@ -86,8 +91,8 @@ def concat_rows(parts: Sequence[Rows]) -> Rows:
     )
 
 
-def _run(args: tuple[SafecaseConfig, RunSpec]) -> Rows:
-    return run_rows(args[0], args[1], 0)
+def _run(config: SafecaseConfig, spec: RunSpec) -> Rows:
+    return run_rows(config, spec, 0)
 
 
 def _gather_parts(
@@ -96,15 +101,35 @@ def _gather_parts(
     workers: int,
     progress: Callable[[int], None] | None,
 ) -> Iterator[Rows]:
-    """Each run's rows, in plan order, as soon as that run (and every one before it) is done."""
-    jobs = [(config, spec) for spec in plan]
-    with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
-        for done, part in enumerate(
-            pool.map(_run, jobs, chunksize=1) if pool else map(_run, jobs), start=1
-        ):
+    """Each run's rows, in plan order, as soon as that run (and every one before it) is done:
+    in this process for ``workers`` 1, else on a Dask LocalCluster of ``workers`` processes
+    (:mod:`pipeline.distributed`, the engine campaigns use too).
+
+    Raises :class:`TrainingDataError` naming the run when a run raised (or its workers kept
+    dying): training never goes on without a run of its plan.
+    """
+    if workers <= 1:
+        for done, spec in enumerate(plan, start=1):
+            part = _run(config, spec)
             if progress is not None:
                 progress(done)
             yield part
+        return
+    from pipeline.distributed import TaskFailed, in_order, open_client
+
+    with open_client(None, workers) as client:
+        task = functools.partial(_run, config)
+        for outcome in in_order(client, task, plan):
+            result = outcome.result
+            if isinstance(result, TaskFailed):
+                spec = plan[outcome.index]
+                raise TrainingDataError(
+                    f"run {spec.scenario} seed {spec.seed} ({spec.duration_s:g} s) failed: "
+                    f"{result.error}"
+                )
+            if progress is not None:
+                progress(outcome.index + 1)
+            yield result
 
 
 def gather_rows(

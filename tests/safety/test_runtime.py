@@ -65,11 +65,19 @@ def test_a_wall_too_long_to_cluster_still_limits_the_speed(classifier: Classifie
     with np.errstate(divide="ignore"):
         ranges = np.where(np.cos(angles) > 0.05, 1.0 / np.cos(angles), np.inf)
     ranges = np.where(ranges < 20.0, ranges, np.inf)
+    scan = Scan(10.0, angles, ranges)
     rt = Runtime(CONFIG, classifier=classifier)
-    out = rt.step(CycleInput.standing(Scan(10.0, angles, ranges), 10.1, CONFIG, charge_s=0.01))
+    out = rt.step(CycleInput.standing(scan, 10.1, CONFIG, charge_s=0.01))
     assert out.record.inputs["clusters"]["n_too_large"] >= 1
     assert out.record.inputs["path"]["loose_points_on_path"] > 0
-    # The robot's front is 0.45 m ahead of its centre: 0.55 m free, sampled down to 0.5 m.
+    # The robot's front is 0.45 m ahead of its centre: 0.55 m free, sampled down to 0.5 m. By
+    # default loose points may be a moving object merged with structure: they close at 1.6 m/s.
+    assert out.command.action is Action.STOP, out.command
+    assert "free distance 0.500 m, closing 1.60 m/s" in out.command.reasons[0]
+    # Declared static, the same wall only slows the robot.
+    static = overridden(CONFIG, {"runtime": {"loose_points": "static"}})
+    rt = Runtime(static, classifier=classifier)
+    out = rt.step(CycleInput.standing(scan, 10.1, static, charge_s=0.01))
     assert out.command.action is Action.SLOW, out.command
     assert "free distance 0.500 m, closing 0.00 m/s, margin 1.00 m" in out.command.reasons[0]
 

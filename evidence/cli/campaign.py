@@ -1,0 +1,142 @@
+"""``safecase campaign``: many seeded closed-loop encounters on Dask, and the contact-rate bound.
+
+The work is :func:`safety.campaign.run_campaign` on a cluster from
+:func:`pipeline.distributed.open_client`; this module reads the options, shows the progress,
+keeps the rows in a JSON Lines file as they arrive (so ``--out`` names a campaign that a second
+call resumes) and reports the bound of :mod:`safety.campaign_stats` (SR-RUN-8).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+
+from evidence.cli.common import ConfigOption, fail, load_config_or_exit, out
+from pipeline.config import SafecaseConfig
+from safety.campaign import (
+    CampaignError,
+    CampaignLog,
+    CampaignRow,
+    Encounter,
+    encounter_plan,
+    pending,
+    run_campaign,
+)
+from safety.campaign_stats import BOUND_COLUMNS, bound_table, closest_figure, cpu_ms_summary
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+__all__ = ["campaign_command"]
+
+
+def campaign_command(
+    encounters: Annotated[
+        int, typer.Option(min=0, help="Random encounters (random_encounter seeds).")
+    ] = 300,
+    named_seeds: Annotated[int, typer.Option(min=0, help="Seeds per named scenario.")] = 0,
+    duration: Annotated[float, typer.Option(min=0.5, help="Run length in seconds.")] = 15.0,
+    first_seed: Annotated[int, typer.Option(min=0, help="First seed of every scenario.")] = 0,
+    workers: Annotated[
+        int, typer.Option(min=1, help="LocalCluster worker processes (without --scheduler).")
+    ] = 2,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Address of a running Dask scheduler (tcp://host:8786) to use."),
+    ] = None,
+    output: Annotated[
+        Path, typer.Option("--out", "-o", help="Campaign file (JSON Lines); resumed if present.")
+    ] = Path("out/campaign/campaign.jsonl"),
+    plot: Annotated[
+        Path | None, typer.Option(help="Write the closest-approach distribution here (PNG).")
+    ] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Run seeded closed-loop encounters on Dask and bound the rate of contacts while moving.
+
+    Rows go to --out as each run ends; calling again with the same --out resumes (only the
+    missing runs are run). The bound is Clopper-Pearson, one-sided 95 % and 99 %.
+
+    Example: safecase campaign --encounters 300 --named-seeds 3 --out out/campaign/c300.jsonl
+
+    Exit codes: 0 done, no contact while moving and no run failed; 1 a contact while moving or
+    a run that raised (each listed); 2 bad options or configuration, a file of another
+    configuration, an unreachable scheduler.
+    """
+    from pipeline.distributed import open_client  # Dask loads only for this command
+
+    cfg = load_config_or_exit(config)
+    plan = encounter_plan(
+        encounters, named_seeds=named_seeds, duration_s=duration, first_seed=first_seed
+    )
+    if not plan:
+        fail("--encounters 0 and --named-seeds 0: nothing to run")
+    try:
+        log = CampaignLog.open(output, cfg)
+    except (CampaignError, OSError) as exc:
+        fail(str(exc))
+    with log:
+        todo = pending(plan, log)
+        if len(todo) < len(plan):
+            out.print(f"resuming {output}: {len(plan) - len(todo)} of {len(plan)} runs done")
+        try:
+            with open_client(scheduler, workers) as client:
+                out.print(f"Dask dashboard: {client.dashboard_link}", highlight=False)
+                _run(client, cfg, plan, log, len(todo))
+        except OSError as exc:
+            fail(str(exc))
+    keys = {e.key for e in plan}
+    _report([r for r in log.rows if r.encounter.key in keys], output, plot)
+
+
+def _run(
+    client: Client, cfg: SafecaseConfig, plan: list[Encounter], log: CampaignLog, todo: int
+) -> None:
+    with Progress(
+        TextColumn("[bold]encounters[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+        task = bar.add_task("runs", total=todo)
+        run_campaign(client, cfg, plan, log, on_row=lambda _row: bar.advance(task))
+
+
+def _report(rows: list[CampaignRow], output: Path, plot: Path | None) -> None:
+    table = Table(title=f"{len(rows)} runs ({output}); one-sided upper bounds of the rate")
+    for column in BOUND_COLUMNS:
+        table.add_column(column, justify="left" if column == "scenario" else "right")
+    for line in bound_table(rows):
+        table.add_row(*line)
+    out.print(table)
+    cpu = cpu_ms_summary(rows)
+    if cpu:
+        out.print(
+            f"cycle CPU: median p50 {cpu['median_p50']:.1f} ms, worst p99 {cpu['max_p99']:.1f} "
+            f"ms, slowest cycle {cpu['max']:.1f} ms",
+            highlight=False,
+        )
+    if plot is not None:
+        closest_figure(rows).savefig(plot, dpi=110)
+        out.print(f"closest-approach plot: {plot}", highlight=False)
+    bad = [r for r in rows if r.error is not None or r.moving_contacts_mps]
+    for row in bad:
+        what = row.error or f"contact while moving at {max(row.moving_contacts_mps):.3f} m/s"
+        out.print(f"{row.encounter.key}: {what}", highlight=False, markup=False)
+    if bad:
+        raise typer.Exit(1)

@@ -1,0 +1,314 @@
+"""Closed-loop campaigns: many seeded encounters, one row each, kept as they arrive (SR-RUN-8).
+
+An :class:`Encounter` is a scenario, a seed and a length; :func:`run_encounter` runs it in
+closed loop exactly as ``safecase run`` does (the runtime deciding after every scan, the
+simulated robot obeying through its actuation latency) and returns its :class:`CampaignRow`:
+contacts with the robot's speed at each, the closest approach, progress along the route, the
+command mix and the per-cycle thread CPU time. Everything but the CPU times is a function of
+the encounter and the configuration alone, so the same seed gives the same :meth:`outcome` on
+any worker.
+
+:class:`CampaignLog` is the campaign's JSON Lines file: a header line naming the configuration
+hash, then one row per finished encounter, flushed as each arrives, so an interrupted
+campaign resumes with the encounters it has not got (:meth:`CampaignLog.done`). An encounter
+that raised is a row too, with its error, counted and never silently dropped.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+import numpy as np
+
+from pipeline.classify.model import Classifier
+from pipeline.config import ClassifySection, SafecaseConfig, config_hash
+from pipeline.errors import SafecaseError
+from pipeline.jsoncodec import dumps
+from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.simulation import BOUNDED
+from safety.run import contact_speeds, run_simulation
+from safety.runtime import Runtime
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+__all__ = [
+    "NAMED",
+    "CampaignError",
+    "CampaignLog",
+    "CampaignRow",
+    "Encounter",
+    "encounter_plan",
+    "failed_row",
+    "pending",
+    "run_campaign",
+    "run_encounter",
+]
+
+FORMAT = "safecase-campaign/1"
+NAMED = tuple(n for n in SCENARIOS if n != "random_encounter")
+
+
+class CampaignError(SafecaseError):
+    """A campaign file that cannot be resumed (another configuration, not a campaign)."""
+
+
+@dataclass(frozen=True, order=True)
+class Encounter:
+    """One closed-loop run: a scenario of :data:`SCENARIOS`, its seed, its length [s]."""
+
+    scenario: str
+    seed: int
+    duration_s: float
+
+    @property
+    def key(self) -> str:
+        """The encounter's name in a campaign file (``scenario/seed/duration``)."""
+        return f"{self.scenario}/{self.seed}/{self.duration_s:g}"
+
+
+def encounter_plan(
+    encounters: int,
+    *,
+    named_seeds: int = 0,
+    duration_s: float = 15.0,
+    first_seed: int = 0,
+    scenarios: Sequence[str] = NAMED,
+) -> list[Encounter]:
+    """``named_seeds`` seeds of every scenario in ``scenarios`` then ``encounters`` random
+    encounters, seeds counted from ``first_seed``; every run ``duration_s`` long."""
+    unknown = [s for s in scenarios if s not in SCENARIOS]
+    if unknown:
+        raise ValueError(f"unknown scenario(s) {unknown}; known: {', '.join(SCENARIOS)}")
+    plan = [
+        Encounter(name, first_seed + s, duration_s)
+        for name in scenarios
+        for s in range(named_seeds)
+    ]
+    plan += [Encounter("random_encounter", first_seed + s, duration_s) for s in range(encounters)]
+    return plan
+
+
+@dataclass(frozen=True)
+class CampaignRow:
+    """What one encounter did. Speeds in m/s, distances in m, times in ms.
+
+    ``moving_contacts_mps``: the robot's speed at each contact made while it moved (each is a
+    violation of passive safety); ``contacts``: every first contact, moving or not;
+    ``closest_m``: the least ego-to-object separation of the run (``inf`` without objects);
+    ``cpu_ms``: percentiles of the cycles' thread CPU time (not part of :meth:`outcome`);
+    ``error``: set when the run raised (then the counts are zero).
+    """
+
+    encounter: Encounter
+    cycles: int
+    commands: Mapping[str, int]
+    contacts: int
+    moving_contacts_mps: tuple[float, ...]
+    closest_m: float
+    progress_m: float
+    route_m: float
+    cpu_ms: Mapping[str, float] = field(default_factory=dict)
+    error: str | None = None
+
+    def outcome(self) -> dict[str, Any]:
+        """The deterministic part of the row (everything but the CPU times)."""
+        row = self.to_json()
+        del row["cpu_ms"]
+        return row
+
+    def to_json(self) -> dict[str, Any]:
+        """The row as JSON-ready data (the campaign file's line)."""
+        return {
+            "scenario": self.encounter.scenario,
+            "seed": self.encounter.seed,
+            "duration_s": self.encounter.duration_s,
+            "cycles": self.cycles,
+            "commands": dict(sorted(self.commands.items())),
+            "contacts": self.contacts,
+            "moving_contacts_mps": list(self.moving_contacts_mps),
+            "closest_m": self.closest_m,
+            "progress_m": self.progress_m,
+            "route_m": self.route_m,
+            "cpu_ms": dict(self.cpu_ms),
+            "error": self.error,
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> CampaignRow:
+        """A row read back from its line (``KeyError`` / ``TypeError`` when malformed)."""
+        return cls(
+            encounter=Encounter(
+                str(data["scenario"]), int(data["seed"]), float(data["duration_s"])
+            ),
+            cycles=int(data["cycles"]),
+            commands={str(k): int(v) for k, v in data["commands"].items()},
+            contacts=int(data["contacts"]),
+            moving_contacts_mps=tuple(float(v) for v in data["moving_contacts_mps"]),
+            closest_m=float(data["closest_m"]),
+            progress_m=float(data["progress_m"]),
+            route_m=float(data["route_m"]),
+            cpu_ms={str(k): float(v) for k, v in data["cpu_ms"].items()},
+            error=None if data["error"] is None else str(data["error"]),
+        )
+
+
+def failed_row(encounter: Encounter, error: str) -> CampaignRow:
+    """The row of an encounter that raised (or whose workers kept dying): counted, not lost."""
+    return CampaignRow(encounter, 0, {}, 0, (), float("inf"), 0.0, 0.0, {}, error)
+
+
+@functools.lru_cache(maxsize=2)
+def _classifier(section: ClassifySection) -> Classifier:
+    """The configured model, loaded (and hash-checked) once per worker process."""
+    return Classifier.from_config(section)
+
+
+def run_encounter(config: SafecaseConfig, encounter: Encounter) -> CampaignRow:
+    """Run ``encounter`` in closed loop (module docstring) and summarise it.
+
+    Raises whatever the run raises; a campaign turns that into a :func:`failed_row`.
+    """
+    if encounter.scenario not in SCENARIOS:
+        raise ValueError(f"unknown scenario {encounter.scenario!r}")
+    sim = make_simulation(
+        config, encounter.scenario, encounter.seed, encounter.duration_s, retention=BOUNDED
+    )
+    runtime = Runtime(config, classifier=_classifier(config.classify))
+    summary = run_simulation(config, sim, runtime=runtime)
+    result = summary.sim
+    assert result is not None  # run_simulation always sets it
+    speeds = contact_speeds(result)
+    cpu = np.asarray(summary.cpu_s, dtype=float) * 1e3
+    return CampaignRow(
+        encounter=encounter,
+        cycles=summary.cycles,
+        commands=dict(summary.actions),
+        contacts=int(speeds.size),
+        moving_contacts_mps=tuple(float(v) for v in speeds[speeds > 0.0]),
+        closest_m=float(np.min(result.min_separation_m, initial=np.inf)),
+        progress_m=float(result.ego_log["arc_m"][-1]),
+        route_m=float(result.ego_spec.route.length_m),
+        cpu_ms=(
+            {
+                "p50": float(np.percentile(cpu, 50)),
+                "p99": float(np.percentile(cpu, 99)),
+                "max": float(cpu.max()),
+            }
+            if cpu.size
+            else {}
+        ),
+    )
+
+
+class CampaignLog:
+    """A campaign's JSON Lines file (module docstring); open with :meth:`open`."""
+
+    def __init__(self, path: Path, handle: TextIO, rows: list[CampaignRow]) -> None:
+        self.path = path
+        self._handle = handle
+        self.rows = rows
+
+    @classmethod
+    def open(cls, path: Path, config: SafecaseConfig) -> CampaignLog:
+        """Open ``path`` for appending, creating it with its header, or resume it.
+
+        Raises :class:`CampaignError` naming the file and line when it is not a campaign of
+        this configuration (another configuration's rows cannot be pooled with ours). A last
+        line cut short by a kill is dropped (its encounter runs again).
+        """
+        digest = config_hash(config)
+        rows: list[CampaignRow] = []
+        if path.exists() and path.stat().st_size:
+            rows, valid_bytes = _read(path, digest)
+            with path.open("r+b") as raw:
+                raw.truncate(valid_bytes)
+            handle = path.open("a", encoding="utf-8")
+        else:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            handle = path.open("w", encoding="utf-8")
+            handle.write(dumps({"format": FORMAT, "config_hash": digest}) + "\n")
+            handle.flush()
+        return cls(path, handle, rows)
+
+    def done(self) -> set[str]:
+        """Keys of the encounters the file already holds."""
+        return {row.encounter.key for row in self.rows}
+
+    def add(self, row: CampaignRow) -> None:
+        """Append one row and flush it to the file."""
+        self.rows.append(row)
+        self._handle.write(dumps(row.to_json()) + "\n")
+        self._handle.flush()
+
+    def close(self) -> None:
+        """Close the file."""
+        self._handle.close()
+
+    def __enter__(self) -> CampaignLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _read(path: Path, digest: str) -> tuple[list[CampaignRow], int]:
+    """The rows of ``path`` and the byte length of its complete lines (see :meth:`open`)."""
+    data = path.read_bytes()
+    lines = data.split(b"\n")
+    complete = lines[:-1]  # the part after the last newline is a line cut short (or empty)
+    if not complete:
+        raise CampaignError(f"{path}: not a campaign file (no header line)")
+    try:
+        header = json.loads(complete[0])
+    except ValueError:
+        header = None
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise CampaignError(f"{path}:1: not a campaign file (expected format {FORMAT})")
+    if header.get("config_hash") != digest:
+        raise CampaignError(
+            f"{path}: written with configuration {str(header.get('config_hash'))[:16]}, this "
+            f"configuration hashes to {digest[:16]}; start a new file"
+        )
+    rows = []
+    for number, line in enumerate(complete[1:], start=2):
+        try:
+            rows.append(CampaignRow.from_json(json.loads(line)))
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise CampaignError(f"{path}:{number}: not a campaign row ({exc})") from exc
+    return rows, len(data) - len(lines[-1])
+
+
+def pending(plan: Iterable[Encounter], log: CampaignLog) -> list[Encounter]:
+    """The encounters of ``plan`` that ``log`` does not hold yet, in plan order."""
+    have = log.done()
+    return [e for e in plan if e.key not in have]
+
+
+def run_campaign(
+    client: Client,
+    config: SafecaseConfig,
+    plan: Sequence[Encounter],
+    log: CampaignLog,
+    on_row: Callable[[CampaignRow], None] | None = None,
+) -> list[CampaignRow]:
+    """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster, appending
+    each row to ``log`` as it arrives (a failure as a :func:`failed_row`); all of the log's
+    rows, resumed ones first."""
+    from pipeline.distributed import TaskFailed, as_done  # Dask loads only for a campaign
+
+    todo = pending(plan, log)
+    task = functools.partial(run_encounter, config)
+    for done in as_done(client, task, todo):
+        encounter = todo[done.index]
+        result = done.result
+        row = failed_row(encounter, result.error) if isinstance(result, TaskFailed) else result
+        log.add(row)
+        if on_row is not None:
+            on_row(row)
+    return list(log.rows)
