@@ -136,10 +136,16 @@ class Observation:
     def from_dict(cls, data: Mapping[str, Any]) -> Observation:
         """Inverse of :meth:`to_dict`."""
         values = dict(data)
-        for key in ("now_s", "previous_now_s", "scan_stamp_s", "previous_scan_stamp_s"):
-            if isinstance(values.get(key), str):
-                values[key] = float(values[key])
-        for key in ("driver_age_s", "cycle_duration_s", "braking_decel_mps2"):
+        for key in (
+            "now_s",
+            "previous_now_s",
+            "scan_stamp_s",
+            "previous_scan_stamp_s",
+            "driver_age_s",
+            "cycle_duration_s",
+            "braking_decel_mps2",
+            "braking_min_mps2",
+        ):
             if isinstance(values.get(key), str):
                 values[key] = float(values[key])
         values["over_cap"] = tuple((str(k), int(v)) for k, v in values["over_cap"].items())
