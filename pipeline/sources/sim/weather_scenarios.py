@@ -26,11 +26,12 @@ from pipeline.config import SafecaseConfig
 from pipeline.sources.sim import motion as mo
 from pipeline.sources.sim.ego import Route
 from pipeline.sources.sim.layouts import apron_stand
-from pipeline.sources.sim.objects import ObjectModel, baggage_tug, person
+from pipeline.sources.sim.objects import baggage_tug, person
 from pipeline.sources.sim.scenarios import (
     ScenarioError,
     ScenarioSpec,
     lidar_spec_from_config,
+    place,
     simulation_for_spec,
 )
 from pipeline.sources.sim.simulation import Simulation
@@ -41,18 +42,6 @@ __all__ = ["WEATHER_SCENARIOS", "weather_simulation"]
 
 _LANE_Y = -1.2
 _ROUTE = Route(np.array([[2.0, _LANE_Y], [42.0, _LANE_Y]]))
-
-
-def _place(
-    object_id: int,
-    name: str,
-    model: ObjectModel,
-    motion: mo.Motion,
-    pose: tuple[float, float, float],
-    duration_s: float,
-) -> SimObject:
-    """An object driven by ``motion`` from ``pose`` (x, y, heading) over the run."""
-    return SimObject(object_id, name, model, mo.integrate(motion, *pose, duration_s + 0.5), motion)
 
 
 def _world(name: str, objects: list[SimObject]) -> World:
@@ -71,13 +60,13 @@ def _night_fog_walker_behind_tug(rng: np.random.Generator, duration: float) -> B
     # The tug stands in the next lane; seen from the approaching robot, a walker at (17.5, 1.5)
     # lies in the tug's shadow until the robot is level with it (module docstring).
     tug_x = float(rng.uniform(14.5, 15.5))
-    tug = _place(1, "tug_idling", baggage_tug(), mo.stationary(), (tug_x, 0.6, 0.0), duration)
+    tug = place(1, "tug_idling", baggage_tug(), mo.stationary(), (tug_x, 0.6, 0.0), duration)
     speed = float(rng.uniform(1.1, 1.4))
     # The robot (1 m/s from x = 2) is 3-5 m short of the walker's line when they enter its lane.
     walk_x = tug_x + 2.4
     enter_s = (walk_x - 2.0 - 0.45 - float(rng.uniform(3.0, 5.0))) / 1.0
     delay = max(0.5, enter_s - (1.5 - (_LANE_Y + 0.6)) / speed)
-    walker = _place(
+    walker = place(
         2,
         "hidden_walker",
         person(),
@@ -85,7 +74,7 @@ def _night_fog_walker_behind_tug(rng: np.random.Generator, duration: float) -> B
         (walk_x, 1.5, -math.pi / 2),
         duration,
     )
-    standing = _place(
+    standing = place(
         3,
         "agent_at_road_edge",
         person(),
@@ -107,7 +96,7 @@ def _reversing_tug_fog(rng: np.random.Generator, duration: float) -> Built:
         reverse_s=3.0,
     )
     pose = (float(rng.uniform(10.0, 12.0)), _LANE_Y + float(rng.uniform(-0.2, 0.2)), 0.0)
-    tug = _place(1, "tug_reversing", baggage_tug(), motion, pose, duration)
+    tug = place(1, "tug_reversing", baggage_tug(), motion, pose, duration)
     return _spec(_world("reversing_tug_fog", [tug]))
 
 
