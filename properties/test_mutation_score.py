@@ -41,6 +41,8 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/decision.py",
     "safety/model/braking.py",
     "safety/geometry/contact.py",
+    "safety/geometry/costmap.py",
+    "safety/geometry/swept.py",
 )
 
 

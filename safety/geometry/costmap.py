@@ -84,9 +84,11 @@ class CostmapBuilder:
             return Costmap(occupied, x0, y0, r, 0)
         v = polygons.vertices_m  # (2, K, N)
         lo, hi = v.min(axis=1) - tol, v.max(axis=1) + tol  # (2, N)
-        i_lo = np.floor((lo[1] - y0) / r).astype(np.int64)
+        # The first closed cell reaching ``lo`` is ceil - 1, not floor: on a grid line the cell
+        # below (left of) it touches too, which zero tolerance would otherwise drop.
+        i_lo = np.ceil((lo[1] - y0) / r).astype(np.int64) - 1
         i_hi = np.floor((hi[1] - y0) / r).astype(np.int64)
-        j_lo = np.floor((lo[0] - x0) / r).astype(np.int64)
+        j_lo = np.ceil((lo[0] - x0) / r).astype(np.int64) - 1
         j_hi = np.floor((hi[0] - x0) / r).astype(np.int64)
         clipped = int(np.count_nonzero((i_lo < 0) | (j_lo < 0) | (i_hi >= rows) | (j_hi >= cols)))
         i_lo, i_hi = np.maximum(i_lo, 0), np.minimum(i_hi, rows - 1)
@@ -101,7 +103,7 @@ class CostmapBuilder:
             v[0].T[poly], v[1].T[poly], y0 + r * row.astype(np.float64), r, tol
         )
         some = np.isfinite(xmin) & np.isfinite(xmax)
-        c_lo = np.floor((np.where(some, xmin, x0) - tol - x0) / r).astype(np.int64)
+        c_lo = np.ceil((np.where(some, xmin, x0) - tol - x0) / r).astype(np.int64) - 1
         c_hi = np.floor((np.where(some, xmax, x0) + tol - x0) / r).astype(np.int64)
         c_lo, c_hi = np.maximum(c_lo, 0), np.minimum(c_hi, cols - 1)
         keep = some & (c_lo <= c_hi)

@@ -168,7 +168,9 @@ def swept_hulls(
     px, py = _placed_points(
         footprint, trajectories.x_m.T, trajectories.y_m.T, trajectories.theta_rad.T
     )
-    px, py = px.reshape(trajectories.n, -1), py.reshape(trajectories.n, -1)
+    # Sized explicitly: with no trajectory, -1 cannot be inferred from an empty array.
+    points = trajectories.steps * px.shape[-1]
+    px, py = px.reshape(trajectories.n, points), py.reshape(trajectories.n, points)
     order, counts, slack = convex_hull_batch(px, py, what="trajectory", workspace=workspace)
     return polygons_from_hull(px, py, order, counts, slack)
 
@@ -266,15 +268,17 @@ class SweptPathChecker:
             contact[ti, oi] = np.maximum(steps, 0)
         big = np.iinfo(np.int64).max
         masked = np.where(blocked, contact, big)
-        first = masked.argmin(axis=1)
         any_blocked = blocked.any(axis=1)
-        earliest = np.where(any_blocked, masked.min(axis=1) * trajectories.step_s, np.inf)
+        # With no envelope (an empty world) there is nothing to reduce: every path is clear.
+        first = np.where(any_blocked, masked.argmin(axis=1), -1) if n_obs else np.full(n_traj, -1)
+        soonest = masked.min(axis=1, initial=big)
+        earliest = np.where(any_blocked, soonest * trajectories.step_s, np.inf)
         return SweptPathReport(
             blocked=blocked,
             contact_step=contact,
             hull_only=hull_only,
             earliest_contact_s=earliest,
-            first_obstacle=np.where(any_blocked, first, -1),
+            first_obstacle=first,
             gated=gated,
             step_s=trajectories.step_s,
         )
@@ -287,7 +291,9 @@ class SweptPathChecker:
         dx, dy = v[0] - rx, v[1] - ry
         reach = float(np.sqrt((dx * dx + dy * dy).max())) if hulls.n else 0.0
         bounds = PolygonBounds(obstacles)
-        magnitude = max(float(np.abs(v).max()), float(bounds.magnitude_m.max(initial=0.0)))
+        magnitude = max(
+            float(np.abs(v).max(initial=0.0)), float(bounds.magnitude_m.max(initial=0.0))
+        )
         # Margins above rounding and the SAT threshold keep the gate implied by exact
         # disjointness: gated envelopes are farther than any hull by more than 2 thr.
         margin = 2.0 * (self.sat.tolerance_m + RHO * magnitude) + 1e-9 * (1.0 + reach)
