@@ -13,7 +13,8 @@ PYTEST_ARGS ?=
 # uv resolves one lock for all supported Pythons (environment markers); only `make lock` uses it
 UV_VERSION := 0.13.9
 
-.PHONY: all test certify lint typecheck pytest venv lock clean help mutation test-all-pythons
+.PHONY: all test certify lint typecheck pytest venv lock clean help mutation test-all-pythons \
+	acoustic-oracle
 
 help:
 	@echo "make certify   run the whole certification suite, write out/certification/<stamp>/"
@@ -21,6 +22,7 @@ help:
 	@echo "make lock      re-resolve requirements.lock (Python 3.10-3.12) from pyproject.toml (network)"
 	@echo "make test-all-pythons  make test on Python 3.10, 3.11, 3.12 (nox; venvs in .nox/)"
 	@echo "make mutation  mutation-test safety/ and the per-cycle stages, results in safety/mutation/"
+	@echo "make acoustic-oracle  build pyroomacoustics into .venv (the DOA oracle; a C++ compiler)"
 
 $(STAMP): requirements.lock pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if (3, 10) <= sys.version_info[:2] <= (3, 12) else \
@@ -67,6 +69,11 @@ mutation: $(STAMP)
 	nice -n 19 $(BIN)/python -m evidence.mutation_run run --jobs 2 \
 	  $(if $(MUTATION_ONLY),--only '$(MUTATION_ONLY)')
 	$(BIN)/python -m evidence.mutation_run status
+
+# The acoustic direction-of-arrival oracle (SR-ACU-2): pyroomacoustics has no wheels, so pip builds
+# it from source (a C++ compiler and network; about 2 minutes); the test skips without it.
+acoustic-oracle: $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check 'pyroomacoustics==0.8.4'
 
 # One lock for Python 3.10-3.12: uv's universal resolution keeps the current pins where they
 # fit and forks a package by environment marker only where a version drops a Python; then every

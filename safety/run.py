@@ -147,6 +147,7 @@ def cycle_input(frame: Frame, config: SafecaseConfig, charge_s: float | None) ->
         radar=frame.radar,
         driver=frame.health,
         charge_s=charge_s,
+        acoustic=frame.acoustic,
     )
 
 

@@ -24,6 +24,10 @@ What the governor is given, per cycle:
 - the end of the known path (the lookahead, or the end of the route), closing at the fastest
   class's speed with unknown confidence: nothing is assumed about what lies beyond.
 
+A microphone array's alert (a bearing, never a position) adds no row: while it is fresh the
+cautious mode caps the command's speed (:mod:`safety.model.caution`, SR-ACU-3), recorded as the
+``acoustic_caution`` verdict and the ``acoustic`` input of the cycle's record.
+
 Any stage that raises ends the perception part of the cycle: the decision is then a STOP
 naming the stage and the error (the runtime loop itself never raises). The record written to
 the audit log holds what :func:`safety.audit.replay.replay` needs to recompute the command.
@@ -63,6 +67,7 @@ from pipeline.types import (
     Scan,
     ThermalDetections,
 )
+from pipeline.types.acoustic import AcousticAlert
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
 from safety.bodies import StillHulls, hull_bodies
 from safety.closing import directed_closing
@@ -71,6 +76,7 @@ from safety.geometry.envelopes import EnvelopeBuilder
 from safety.geometry.path import PathAhead, PathClearance, PathDistances
 from safety.geometry.swept import SweptPathChecker
 from safety.model.braking import BrakingWatch
+from safety.model.caution import caution_verdict
 from safety.model.decision import Decision, GovernorInputs, decide
 from safety.model.freshness import is_fresh
 from safety.model.governor import Governor
@@ -115,7 +121,8 @@ class CycleInput:
     stage, in tests); ``fault(stage)`` may raise to make a stage fail (tests). ``charge_s``, when
     given, is the cycle's duration on the decision clock in place of the measured one (a
     simulated clock: the closed loop then does not depend on this machine's speed and load; the
-    measured times are still recorded).
+    measured times are still recorded). ``acoustic`` is the microphone array's newest alert,
+    which caps the speed while fresh (SR-ACU-3).
     """
 
     scan: Scan | None
@@ -128,6 +135,7 @@ class CycleInput:
     delay_s: float = 0.0
     fault: Callable[[str], None] | None = None
     charge_s: float | None = None
+    acoustic: AcousticAlert | None = None
 
     @classmethod
     def standing(
@@ -148,6 +156,7 @@ class CycleInput:
             thermal=self.thermal,
             radar=self.radar,
             health=self.driver,
+            acoustic=self.acoustic,
         )
 
 
@@ -297,6 +306,13 @@ class Runtime:
                 ),
                 braking_min_mps2=float(self.params.decel_min_mps2),
             )
+            if inp.acoustic is not None:
+                # A fresh alert caps the speed (SR-ACU-3); recorded as a verdict and an input.
+                caution = caution_verdict(
+                    decision_now, inp.acoustic, self.config.acoustic, self.governor.max_speed_mps
+                )
+                stage_verdicts.append(caution)
+                parts["acoustic"] = _alert_part(inp.acoustic, caution)
             decision = decide(
                 self.governor, inputs, observation, self.config.monitors, stage_verdicts
             )
@@ -428,6 +444,20 @@ class _SafetySide:
     planner: dict[str, Any] | None
     costmap: dict[str, Any] | None
     grid: Costmap | None
+
+
+def _alert_part(alert: object, caution: MonitorVerdict) -> dict[str, Any]:
+    """The audit record's summary of an acoustic alert and whether it capped the speed (an
+    input that is not an alert is named, never read: its verdict is already a STOP)."""
+    if not isinstance(alert, AcousticAlert):
+        return {"invalid": type(alert).__name__, "caution": True}
+    return {
+        "kind": alert.kind.value,
+        "bearing_rad": alert.bearing_rad,
+        "confidence": alert.confidence,
+        "stamp_s": alert.stamp_s,
+        "caution": caution.action is not Action.PROCEED,
+    }
 
 
 def _fold_parts(

@@ -26,9 +26,16 @@ from pipeline.sources import FrameSource
 from pipeline.sources.logs.source import LogSource
 from pipeline.sources.logs.stamps import StampRule
 from pipeline.sources.serial.source import EmulatedSource, SerialSource
+from pipeline.sources.sim.acoustic_scenarios import (
+    ACOUSTIC_SCENARIOS,
+    HearingSimSource,
+    hearing_simulation,
+)
+from pipeline.sources.sim.markings_source import MarkingsSource, markings_beside
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED
 from pipeline.sources.sim.source import SimSource
+from safety.availability import Comparison
 from safety.run import RunSummary, contact_speeds, run_audited
 from safety.runtime import CycleInput, CycleOutput, Runtime
 
@@ -110,6 +117,16 @@ def run_command(
             "three speeds (about three times the run's time).",
         ),
     ] = False,
+    markings: Annotated[
+        bool,
+        typer.Option(
+            "--markings/--no-markings",
+            help="Simulator: also localise by the apron's painted markings (a 32-ring LiDAR's "
+            "ground returns, map matching against drifting odometry) beside the run, and print "
+            "the position error with and without it. A localisation aid: the safety chain does "
+            "not read it (docs/findings/markings.md).",
+        ),
+    ] = False,
     config: ConfigOption = None,
 ) -> None:
     """Run the audited runtime: scan -> clusters -> tracks -> classes -> envelopes -> path
@@ -137,11 +154,17 @@ def run_command(
         fail("--scan-topic, --odom-topic and --restamp apply to --log only")
     if compare and chosen:
         fail(f"--compare applies to simulator runs only, not to {chosen[0]}")
+    if markings and (chosen or compare):
+        fail("--markings applies to a simulator run without --compare")
     if compare and scans is not None:
         fail("--compare runs the whole scenario: give its length with --duration, not --scans")
     name = scenario or cfg.sim.scenario
-    if name not in SCENARIOS:
-        fail(f"--scenario {name!r}: unknown; known: {', '.join(SCENARIOS)}")
+    hearing = name in ACOUSTIC_SCENARIOS
+    if name not in SCENARIOS and not hearing:
+        known = ", ".join([*SCENARIOS, *ACOUSTIC_SCENARIOS])
+        fail(f"--scenario {name!r}: unknown; known: {known}")
+    if hearing and (chosen or compare or markings):
+        fail(f"--scenario {name}: a closed-loop simulator run only (no --compare, --markings)")
     if emulate is not None and emulate not in EMULATORS:
         fail(f"--emulate {emulate!r}: allowed: {', '.join(EMULATORS)}")
     if mcap is not None and (mcap.exists() or not mcap.parent.is_dir()):
@@ -164,9 +187,18 @@ def run_command(
                 _report(cfg, summary, source)
                 _recorded(mcap)
                 return
+            if hearing:
+                heard = hearing_simulation(cfg, name, seed or 0, duration or cfg.sim.duration_s)
+                target = audit or log_dir / f"{name}-seed{seed or 0}-{stamp()}.jsonl"
+                summary = _run_recorded(cfg, heard, target, scans, None, measured_clock, mcap)
+                _report(cfg, summary, None)
+                out.print(heard.summary(), highlight=False)
+                _finish(summary, target, None, plot, mcap)
+                return
             sim = make_simulation(cfg, name, seed, duration)
             target = audit or log_dir / f"{name}-seed{sim.seed}-{stamp()}.jsonl"
             comparison = None
+            aided: MarkingsSource | None = None
             if compare:
 
                 def ours(
@@ -179,6 +211,9 @@ def run_command(
 
                 comparison = compared(cfg, sim, duration, ours)
                 summary = comparison.ours
+            elif markings:
+                aided = markings_beside(cfg, sim)
+                summary = _run_recorded(cfg, aided, target, scans, None, measured_clock, mcap)
             else:
                 summary = _run_recorded(
                     cfg, SimSource(sim), target, scans, None, measured_clock, mcap
@@ -186,22 +221,36 @@ def run_command(
         except (SafecaseError, ValueError, OSError) as exc:
             fail(str(exc))
         _report(cfg, summary, None)
-        if comparison is not None:
-            report_comparison(comparison)
-        _recorded(mcap)
-        if plot and summary.sim is not None:
-            from safety.run_plot import run_figure
+        if aided is not None:
+            out.print(aided.summary(), highlight=False)
+        _finish(summary, target, comparison, plot, mcap)
 
-            png = target.with_suffix(".png")
-            if comparison is not None:
-                figure = run_figure(summary, comparison.others(), comparison.nuisance_times_s())
-            else:
-                figure = run_figure(summary)
-            figure.savefig(png, dpi=110)
-            out.print(f"plot: {png}", highlight=False)
-        if summary.moving_contacts:
-            out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
-            raise typer.Exit(1)
+
+def _finish(
+    summary: RunSummary,
+    target: Path,
+    comparison: Comparison | None,
+    plot: bool,
+    mcap: Path | None,
+) -> None:
+    """The end of a simulator run: the comparison, the recording, the plot, and exit 1 on a
+    contact while moving."""
+    if comparison is not None:
+        report_comparison(comparison)
+    _recorded(mcap)
+    if plot and summary.sim is not None:
+        from safety.run_plot import run_figure
+
+        png = target.with_suffix(".png")
+        if comparison is not None:
+            figure = run_figure(summary, comparison.others(), comparison.nuisance_times_s())
+        else:
+            figure = run_figure(summary)
+        figure.savefig(png, dpi=110)
+        out.print(f"plot: {png}", highlight=False)
+    if summary.moving_contacts:
+        out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
+        raise typer.Exit(1)
 
 
 def _recorded(mcap: Path | None) -> None:
@@ -315,7 +364,7 @@ def _run_live(
 
 def _run_recorded(
     cfg: SafecaseConfig,
-    source: SimSource | LogSource,
+    source: SimSource | MarkingsSource | HearingSimSource | LogSource,
     target: Path,
     max_scans: int | None,
     duration_s: float | None,
@@ -327,7 +376,11 @@ def _run_recorded(
     """The simulator or a log, with a progress bar; the summary holds the simulator's verdict.
     ``runtime`` and ``observe`` are :func:`safety.run.run_audited`'s."""
     summary = RunSummary(source.name, audit_path=target)
-    total = source.n_frames if isinstance(source, SimSource) else None
+    total = (
+        source.n_frames
+        if isinstance(source, SimSource | MarkingsSource | HearingSimSource)
+        else None
+    )
     with scan_progress(source.name) as bar:
         task = bar.add_task("run", total=total)
         outputs = _generator(
@@ -350,7 +403,7 @@ def _run_recorded(
         except KeyboardInterrupt:
             outputs.close()  # closes the audit log before the summary
             out.print("stopped on request", highlight=False)
-    if isinstance(source, SimSource):
+    if not isinstance(source, LogSource):
         summary.sim = source.result()
     return summary
 

@@ -41,11 +41,17 @@ from pipeline.config.sections_safety import (
     RuntimeSection,
     StoppingSection,
 )
-from pipeline.config.sections_sensors import RadarSection, ThermalSection
+from pipeline.config.sections_sensors import (
+    AcousticSection,
+    MarkingsSection,
+    RadarSection,
+    ThermalSection,
+)
 from pipeline.config.sections_sim import CampaignSection, SimSection
 from pipeline.errors import ConfigError
 
 __all__ = [
+    "AcousticSection",
     "AuditSection",
     "CampaignSection",
     "ClassifySection",
@@ -55,6 +61,7 @@ __all__ = [
     "FusionSection",
     "GeometrySection",
     "GovernorSection",
+    "MarkingsSection",
     "MonitorSection",
     "PredictSection",
     "RadarSection",
@@ -95,6 +102,8 @@ class SafecaseConfig(Section):
     runtime: RuntimeSection = RuntimeSection()
     thermal: ThermalSection = ThermalSection()
     radar: RadarSection = RadarSection()
+    acoustic: AcousticSection = AcousticSection()
+    markings: MarkingsSection = MarkingsSection()
 
     @model_validator(mode="after")
     def _monitor_enforces_the_proved_latency(self) -> SafecaseConfig:

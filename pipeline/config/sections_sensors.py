@@ -1,8 +1,10 @@
-"""Configuration sections of the thermal camera and the radar beside the primary LiDAR
-(SR-FUS-5, SR-FUS-6, SR-FUS-7).
+"""Configuration sections of the thermal camera, the radar, the microphone array and the
+multi-ring LiDAR's marking detector beside the primary LiDAR (SR-FUS-5, SR-FUS-6, SR-FUS-7,
+SR-ACU-1..4, SR-MRK-1..4).
 
-Figures from the airside recommendations #22 and #24 (docs/findings/sensors.md). Nothing in
-the runtime reads these sections yet: the camera's simulator and the sensors' front-ends do.
+Figures from the airside recommendations #22, #23, #24 and #25 (docs/findings/sensors.md,
+docs/findings/acoustic.md, docs/findings/markings.md). The runtime reads only the acoustic
+section's freshness and caution keys; the simulators and the sensors' front-ends read the rest.
 """
 
 from __future__ import annotations
@@ -94,3 +96,160 @@ class RadarSection(Section):
     ghost_margin_m: float = Field(0.3, ge=0.0, le=10.0)
     degraded_noise_fraction: float = Field(0.15, gt=0.0, le=1.0)
     degraded_from: float = Field(0.3, gt=0.0, le=1.0)
+
+
+class AcousticSection(Section):
+    """Microphone array (#23: 4-8 MEMS microphones about 15 cm apart), its alert detector and
+    the governor's cautious mode (SR-ACU-1..4).
+
+    ``n_mics`` microphones on a circle, neighbours ``mic_spacing_m`` apart, centred at
+    ``(mount_x_m, mount_y_m)`` in the robot frame, sampled at ``sample_rate_hz``; sound travels
+    at ``speed_of_sound_mps``. The detector takes STFTs of ``stft_len`` samples every
+    ``stft_hop`` samples; a band's noise floor is the ``floor_quantile`` of its power over the
+    analysis window (adaptive: it follows the apron's level). Reversing beepers are tones of
+    ``beeper_low_hz``..``beeper_high_hz`` pulsed with a period of ``pulse_min_period_s``..
+    ``pulse_max_period_s``: a band is "on" in a frame when its power exceeds the floor by
+    ``on_db``, and a beeper is reported when the band's on/off pattern correlates with itself at
+    one period by at least ``pulse_min_corr`` and it is on in ``min_on_fraction``..
+    ``max_on_fraction`` of the frames. Horns are harmonic stacks with a fundamental of
+    ``horn_low_hz``..``horn_high_hz``, reported when the mean excess over the floor of its first
+    ``horn_harmonics`` harmonics reaches ``horn_db`` for at least ``horn_min_s``. GCC-PHAT
+    peaks are refined on a grid ``gcc_interp`` times finer than the sample period.
+
+    An alert is fresh for ``max_age_s`` (the freshness guard, with the array's clock off the
+    decision clock by at most ``clock_skew_s``); while one is fresh the governor commands at most
+    ``caution_speed_mps``. An alert is a bearing: it never creates an obstacle.
+    """
+
+    n_mics: int = Field(4, ge=4, le=8)
+    mic_spacing_m: float = Field(0.15, gt=0.01, le=1.0)
+    mount_x_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_y_m: float = Field(0.0, ge=-10.0, le=10.0)
+    sample_rate_hz: float = Field(16_000.0, ge=8_000.0, le=96_000.0)
+    speed_of_sound_mps: float = Field(343.0, ge=300.0, le=360.0)
+    stft_len: int = Field(512, ge=64, le=8192)
+    stft_hop: int = Field(256, ge=16, le=8192)
+    floor_quantile: float = Field(0.2, gt=0.0, lt=0.5)
+    beeper_low_hz: float = Field(1_000.0, gt=0.0, le=20_000.0)
+    beeper_high_hz: float = Field(2_500.0, gt=0.0, le=20_000.0)
+    pulse_min_period_s: float = Field(0.4, gt=0.0, le=10.0)
+    pulse_max_period_s: float = Field(1.2, gt=0.0, le=10.0)
+    on_db: float = Field(6.0, gt=0.0, le=60.0)
+    pulse_min_corr: float = Field(0.6, gt=0.0, le=1.0)
+    min_on_fraction: float = Field(0.2, ge=0.0, le=1.0)
+    max_on_fraction: float = Field(0.8, ge=0.0, le=1.0)
+    horn_low_hz: float = Field(250.0, gt=0.0, le=5_000.0)
+    horn_high_hz: float = Field(600.0, gt=0.0, le=5_000.0)
+    horn_harmonics: int = Field(4, ge=1, le=16)
+    horn_db: float = Field(10.0, gt=0.0, le=60.0)
+    horn_min_s: float = Field(0.3, gt=0.0, le=10.0)
+    gcc_interp: int = Field(8, ge=1, le=64)
+    max_age_s: float = Field(2.0, gt=0.0, le=30.0)
+    clock_skew_s: float = Field(0.0, ge=0.0, le=1.0)
+    caution_speed_mps: float = Field(0.5, ge=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Self:
+        nyquist = self.sample_rate_hz / 2.0
+        for low, high in (
+            ("beeper_low_hz", "beeper_high_hz"),
+            ("pulse_min_period_s", "pulse_max_period_s"),
+            ("min_on_fraction", "max_on_fraction"),
+            ("horn_low_hz", "horn_high_hz"),
+        ):
+            if getattr(self, low) >= getattr(self, high):
+                raise ValueError(
+                    f"acoustic.{low} ({getattr(self, low)}) must be below acoustic.{high} "
+                    f"({getattr(self, high)})"
+                )
+        top = max(self.beeper_high_hz, self.horn_high_hz * self.horn_harmonics)
+        if top >= nyquist:
+            raise ValueError(
+                f"acoustic: the detector's bands reach {top} Hz, at or above the Nyquist "
+                f"frequency of acoustic.sample_rate_hz ({nyquist} Hz)"
+            )
+        if self.stft_hop > self.stft_len:
+            raise ValueError(
+                f"acoustic.stft_hop ({self.stft_hop}) must not exceed acoustic.stft_len "
+                f"({self.stft_len})"
+            )
+        if self.clock_skew_s >= self.max_age_s:
+            raise ValueError(
+                f"acoustic.clock_skew_s ({self.clock_skew_s}) must be below acoustic.max_age_s "
+                f"({self.max_age_s}): otherwise no alert is ever fresh"
+            )
+        return self
+
+
+class MarkingsSection(Section):
+    """Retro-reflective ground markings from a multi-ring LiDAR's intensity (#25; SR-MRK-1..3).
+
+    A localisation aid, never a safety input (SR-MRK-4): nothing in the runtime reads this
+    section. The scanner (RS32 class: 32 rings from ``elevation_min_deg`` to
+    ``elevation_max_deg``, dense near the horizon; ``n_columns`` firings a revolution at
+    ``rate_hz``) is mounted ``mount_z_m`` above the ground at ``mount_x_m`` ahead of the robot's
+    centre; a ring's beam diverges by ``divergence_mrad``; ranges have ``range_std_m`` noise
+    and intensities a relative ``intensity_std`` noise. The detector keeps returns within
+    ``ground_tolerance_m`` of the ground plane fitted to the returns near the expected ground
+    and within ``max_ground_range_m``; normalises intensity as I_norm = I_raw (range /
+    ``ref_range_m``)^2, divided by the incidence cosine when ``incidence_correction``; and keeps
+    a return brighter than ``threshold_factor`` x the scan's median ground I_norm. Kept returns
+    are binned into a bird's-eye grid of ``bev_cell_m`` cells, clustered (DBSCAN, ``cluster_eps_m``,
+    ``cluster_min_samples``; clusters of at least ``min_cluster_cells``), and in each cluster
+    straight lines (RANSAC, ``ransac_iterations`` trials seeded by ``ransac_seed``, inliers within
+    ``line_inlier_m``, at least ``min_line_inliers`` and ``min_line_length_m`` long) and then arcs
+    (radius ``arc_min_radius_m``..``arc_max_radius_m``, inliers within ``arc_inlier_m``, at least
+    ``min_arc_inliers``) are fitted, at most ``max_features`` a scan. Map matching aligns the
+    fitted features' inliers within ``match_max_range_m`` of the robot (farther, a beam's
+    footprint is long along the ray and smears a stripe across it) to the stored map (point to
+    centre line, ``match_iterations`` Gauss-Newton steps, pairs farther than ``match_gate_m``
+    left out, directions whose
+    information per point is below ``min_information`` left uncorrected) and accepts a
+    correction with at least ``min_match_points`` pairs, an RMS residual of at most
+    ``max_match_rms_m`` and a size of at most ``max_correction_m``.
+    """
+
+    elevation_min_deg: float = Field(-25.0, ge=-60.0, lt=0.0)
+    elevation_max_deg: float = Field(15.0, gt=0.0, le=60.0)
+    n_columns: int = Field(900, ge=16, le=7200)
+    rate_hz: float = Field(10.0, gt=0.0, le=40.0)
+    mount_x_m: float = Field(0.3, ge=-10.0, le=10.0)
+    mount_z_m: float = Field(1.5, gt=0.2, le=5.0)
+    divergence_mrad: float = Field(3.0, ge=0.0, le=20.0)
+    range_std_m: float = Field(0.02, ge=0.0, le=1.0)
+    intensity_std: float = Field(0.1, ge=0.0, le=1.0)
+    ground_tolerance_m: float = Field(0.1, gt=0.0, le=1.0)
+    max_ground_range_m: float = Field(30.0, gt=1.0, le=200.0)
+    ref_range_m: float = Field(10.0, gt=0.0, le=200.0)
+    incidence_correction: bool = True
+    threshold_factor: float = Field(2.0, gt=1.0, le=20.0)
+    bev_cell_m: float = Field(0.1, gt=0.0, le=1.0)
+    cluster_eps_m: float = Field(3.0, gt=0.0, le=10.0)
+    cluster_min_samples: int = Field(2, ge=1, le=50)
+    min_cluster_cells: int = Field(4, ge=1, le=1000)
+    ransac_iterations: int = Field(64, ge=1, le=10_000)
+    ransac_seed: int = Field(0, ge=0)
+    line_inlier_m: float = Field(0.1, gt=0.0, le=1.0)
+    min_line_inliers: int = Field(6, ge=2, le=10_000)
+    min_line_length_m: float = Field(1.0, gt=0.0, le=100.0)
+    arc_inlier_m: float = Field(0.1, gt=0.0, le=1.0)
+    arc_min_radius_m: float = Field(2.0, gt=0.0, le=1000.0)
+    arc_max_radius_m: float = Field(40.0, gt=0.0, le=1000.0)
+    min_arc_inliers: int = Field(8, ge=3, le=10_000)
+    max_features: int = Field(24, ge=1, le=1000)
+    match_iterations: int = Field(8, ge=1, le=100)
+    match_gate_m: float = Field(0.5, gt=0.0, le=10.0)
+    match_max_range_m: float = Field(15.0, gt=0.0, le=200.0)
+    min_information: float = Field(0.05, gt=0.0, le=1.0)
+    min_match_points: int = Field(12, ge=3, le=100_000)
+    max_match_rms_m: float = Field(0.1, gt=0.0, le=10.0)
+    max_correction_m: float = Field(1.0, gt=0.0, le=100.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.arc_min_radius_m >= self.arc_max_radius_m:
+            raise ValueError(
+                f"markings.arc_min_radius_m ({self.arc_min_radius_m}) must be below "
+                f"markings.arc_max_radius_m ({self.arc_max_radius_m})"
+            )
+        return self

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.types.acoustic import AcousticAlert
 from pipeline.types.core import FloatArray, Scan, frozen_array
 from pipeline.types.drivers import DriverHealth
 from pipeline.types.fusion import RadarDetections, ThermalDetections
@@ -25,6 +26,8 @@ class Frame:
     frame; ``health`` is a serial link's state. ``route_m`` (k, 2), when the source knows it, is
     the robot's planned route in the tracking frame and ``route_arc_m`` how far along it the
     robot is at ``received_s``; without it the path ahead is straight along the robot's heading.
+    ``acoustic`` is the newest alert of the microphone array (a bearing, never a position), which
+    the runtime reads as a reason for caution (SR-ACU-3), or None.
     """
 
     scan: Scan | None
@@ -35,6 +38,7 @@ class Frame:
     health: DriverHealth | None = None
     route_m: FloatArray | None = None
     route_arc_m: float = 0.0
+    acoustic: AcousticAlert | None = None
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.received_s):
