@@ -45,8 +45,7 @@ import numpy as np
 
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.errors import SafecaseError
-from pipeline.frames import Pose, to_parent
+from pipeline.frames import to_parent
 from pipeline.perception import STAGES as PERCEPTION_STAGES
 from pipeline.perception import (
     Partial,
@@ -59,25 +58,21 @@ from pipeline.perception import (
 from pipeline.types import (
     Action,
     Command,
-    DriverHealth,
     Envelopes,
-    Frame,
     PredictionMode,
-    RadarDetections,
-    Scan,
-    ThermalDetections,
 )
 from pipeline.types.acoustic import AcousticAlert
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
 from safety.bodies import StillHulls, hull_bodies
 from safety.closing import directed_closing
+from safety.cycle import CycleDetail, CycleInput, CycleInputError, CycleOutput, Levers
 from safety.geometry.costmap import Costmap, CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
-from safety.geometry.path import PathAhead, PathClearance, PathDistances
+from safety.geometry.path import PathClearance, PathDistances
 from safety.geometry.swept import SweptPathChecker
 from safety.model.braking import BrakingWatch
 from safety.model.caution import caution_verdict
-from safety.model.decision import Decision, GovernorInputs, decide
+from safety.model.decision import GovernorInputs, decide
 from safety.model.freshness import is_fresh
 from safety.model.governor import Governor
 from safety.model.monitors import MonitorVerdict, Observation
@@ -91,6 +86,7 @@ from safety.obstacles import (
     still_zones,
 )
 
+# The cycle's data types live in safety.cycle; they are re-exported here, where users look.
 __all__ = [
     "STAGES",
     "CycleDetail",
@@ -103,98 +99,6 @@ __all__ = [
 
 # The perception chain's stages, then the safety side's (the decision is timed as "decide").
 STAGES = (*PERCEPTION_STAGES, "envelopes", "path", "planner", "costmap")
-
-
-class CycleInputError(SafecaseError, ValueError):
-    """A cycle input that cannot be processed (raised inside a stage, recorded as its STOP)."""
-
-
-@dataclass(frozen=True, slots=True)
-class CycleInput:
-    """Everything one cycle reads.
-
-    ``now_s`` is the decision clock when the scan became available [s]; ``robot_pose`` the
-    robot's (x_m, y_m, yaw_rad) in the tracking frame at the scan's stamp (odometry; the
-    identity for a robot that does not move, e.g. on a test bench); ``path`` the robot's path
-    ahead from its current pose, in the tracking frame. ``thermal`` and ``radar`` are in the
-    robot frame at ``robot_pose``. ``delay_s`` is extra time charged to the cycle (a stalled
-    stage, in tests); ``fault(stage)`` may raise to make a stage fail (tests). ``charge_s``, when
-    given, is the cycle's duration on the decision clock in place of the measured one (a
-    simulated clock: the closed loop then does not depend on this machine's speed and load; the
-    measured times are still recorded). ``acoustic`` is the microphone array's newest alert,
-    which caps the speed while fresh (SR-ACU-3).
-    """
-
-    scan: Scan | None
-    now_s: float
-    robot_pose: Pose
-    path: PathAhead
-    thermal: ThermalDetections | None = None
-    radar: RadarDetections | None = None
-    driver: DriverHealth | None = None
-    delay_s: float = 0.0
-    fault: Callable[[str], None] | None = None
-    charge_s: float | None = None
-    acoustic: AcousticAlert | None = None
-
-    @classmethod
-    def standing(
-        cls, scan: Scan | None, now_s: float, config: SafecaseConfig, **extra: Any
-    ) -> CycleInput:
-        """A cycle of a robot that does not move (tracking in the robot frame, the path
-        straight ahead), as on a test bench or with a scanner read without odometry."""
-        rc = config.runtime
-        path = PathAhead.straight((0.0, 0.0, 0.0), rc.path_lookahead_m, rc.path_step_m)
-        return cls(scan=scan, now_s=now_s, robot_pose=(0.0, 0.0, 0.0), path=path, **extra)
-
-    def frame(self) -> Frame:
-        """What the perception chain reads of this input."""
-        return Frame(
-            self.scan,
-            self.now_s,
-            pose=self.robot_pose,
-            thermal=self.thermal,
-            radar=self.radar,
-            health=self.driver,
-            acoustic=self.acoustic,
-        )
-
-
-@dataclass(frozen=True, slots=True)
-class CycleDetail:
-    """What a cycle read and built, for a recording of the run (:mod:`safety.foxglove`): its
-    input, the perception chain's result and the costmap (each None when the cycle stopped
-    before it, or the costmap is off)."""
-
-    inp: CycleInput
-    perceived: Perceived | None
-    costmap: Costmap | None
-
-
-@dataclass(frozen=True, slots=True)
-class CycleOutput:
-    """One cycle's result: the command, the decision, what was logged, per-stage wall-clock
-    times and the thread's CPU time [s], the envelopes (robot frame; None when the cycle
-    stopped before them), the path distances and the cycle's :class:`CycleDetail`."""
-
-    command: Command
-    decision: Decision
-    record: CycleRecord
-    wall_s: dict[str, float]
-    cpu_s: float
-    envelopes: Envelopes | None
-    distances: PathDistances | None
-    detail: CycleDetail | None = None
-
-
-@dataclass(frozen=True)
-class Levers:
-    """The availability levers (SR-AVL-5, SR-AVL-6), each proved or argued not to weaken a
-    safety obligation: ``directed_closing`` (:mod:`safety.closing`) and ``outline_bodies``
-    (:mod:`safety.bodies`)."""
-
-    directed_closing: bool = True
-    outline_bodies: bool = True
 
 
 class Runtime:
