@@ -34,7 +34,7 @@ from pipeline.sources.sim.acoustic_scenarios import (
 from pipeline.sources.sim.markings_source import MarkingsSource, markings_beside
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED
-from pipeline.sources.sim.source import SimSource
+from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from safety.availability import Comparison
 from safety.run import RunSummary, contact_speeds, run_audited
 from safety.runtime import CycleInput, CycleOutput, Runtime
@@ -364,7 +364,7 @@ def _run_live(
 
 def _run_recorded(
     cfg: SafecaseConfig,
-    source: SimSource | MarkingsSource | HearingSimSource | LogSource,
+    source: SimSource | SimSourceBeside | LogSource,
     target: Path,
     max_scans: int | None,
     duration_s: float | None,

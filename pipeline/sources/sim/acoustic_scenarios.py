@@ -31,8 +31,7 @@ from pipeline.sources.sim.acoustic import ApronNoise, Beeper, apron_noise, level
 from pipeline.sources.sim.airside_scenarios import AIRSIDE_SCENARIOS
 from pipeline.sources.sim.objects import baggage_tug
 from pipeline.sources.sim.scenarios import ScenarioError, ScenarioSpec, place, simulation_for_spec
-from pipeline.sources.sim.simulation import SimResult
-from pipeline.sources.sim.source import SimSource
+from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from pipeline.sources.sim.world import SimObject
 from pipeline.types import Frame
 from pipeline.types.acoustic import AcousticAlert, AudioClip
@@ -71,12 +70,10 @@ ACOUSTIC_SCENARIOS: dict[str, tuple[str, Callable[[np.random.Generator, float], 
 }
 
 
-class HearingSimSource:
+class HearingSimSource(SimSourceBeside):
     """A closed-loop simulator source whose frames carry the microphone array's newest alert
     (module docstring). ``source_db`` is the beeper's level at 1 m [dB SPL] (reversing alarms:
     97-112 dB at 1.2 m)."""
-
-    live = False
 
     def __init__(
         self,
@@ -90,7 +87,7 @@ class HearingSimSource:
         window_s: float = 3.0,
         hop_s: float = 0.5,
     ) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.section = section
         self.rng = rng
         self.beeper = beeper if beeper is not None else Beeper(0.0, 0.0)
@@ -103,16 +100,6 @@ class HearingSimSource:
         self.alerts: list[AcousticAlert] = []
         self._next_s = window_s
         self._alert: AcousticAlert | None = None
-
-    @property
-    def name(self) -> str:
-        """The scenario's name."""
-        return self.inner.name
-
-    @property
-    def n_frames(self) -> int:
-        """The inner source's scan count."""
-        return self.inner.n_frames
 
     def summary(self) -> str:
         """One line for a run's report: the alerts heard, the first one's stamp and bearing."""
@@ -158,14 +145,6 @@ class HearingSimSource:
         backing = self.vehicle.trajectory.at(times)["speed_mps"] < 0.0
         audio = apron_noise(self.noise, mics, n, fs, c, self.rng) + gain * signal * backing
         return AudioClip(audio, fs, start_s, mics)
-
-    def command(self, speed_mps: float, at_s: float) -> None:
-        """The runtime's command, passed to the simulation."""
-        self.inner.command(speed_mps, at_s)
-
-    def result(self) -> SimResult:
-        """The run so far."""
-        return self.inner.result()
 
 
 def _named(objects: tuple[SimObject, ...], name: str) -> SimObject:

@@ -24,8 +24,8 @@ from pipeline.sensors.marking_map import MarkingMap
 from pipeline.sensors.markings import detect_markings
 from pipeline.sources.sim.apron_markings import apron_markings
 from pipeline.sources.sim.rings import Surface, ring_scan
-from pipeline.sources.sim.simulation import SimResult, Simulation
-from pipeline.sources.sim.source import SimSource
+from pipeline.sources.sim.simulation import Simulation
+from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from pipeline.types import Frame, Pose
 
 __all__ = ["Drift", "MarkingReport", "MarkingsSource", "markings_beside"]
@@ -64,11 +64,9 @@ class MarkingReport:
         return math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])
 
 
-class MarkingsSource:
+class MarkingsSource(SimSourceBeside):
     """``inner``'s frames, unchanged, with the marking localisation beside them (module
     docstring). ``rng`` draws the ring scans' noise; ``drift`` the odometry's error."""
-
-    live = False
 
     def __init__(
         self,
@@ -80,23 +78,13 @@ class MarkingsSource:
         surface: Surface | None = None,
         drift: Drift | None = None,
     ) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.config = config
         self.marking_map = marking_map
         self.rng = rng
         self.surface = Surface() if surface is None else surface
         self.drift = Drift() if drift is None else drift
         self.reports: list[MarkingReport] = []
-
-    @property
-    def name(self) -> str:
-        """The inner source's name."""
-        return self.inner.name
-
-    @property
-    def n_frames(self) -> int:
-        """The inner source's scan count."""
-        return self.inner.n_frames
 
     def frames(self) -> Iterator[Frame]:
         """The inner source's frames, each after its scan's localisation step."""
@@ -145,14 +133,6 @@ class MarkingsSource:
             f"odometry only {odo[-1]:.3f} m (max {max(odo):.3f}), corrected {cor[-1]:.3f} m "
             f"(max {max(cor):.3f}); a localisation aid, not read by the safety chain"
         )
-
-    def command(self, speed_mps: float, at_s: float) -> None:
-        """The runtime's command, passed to the inner source."""
-        self.inner.command(speed_mps, at_s)
-
-    def result(self) -> SimResult:
-        """The inner run's result."""
-        return self.inner.result()
 
 
 def markings_beside(config: SafecaseConfig, sim: Simulation) -> MarkingsSource:

@@ -25,7 +25,7 @@ from pipeline.sources.sim.simulation import BOUNDED, Retention, SimResult, Simul
 from pipeline.sources.sim.thermal import thermal_from_truth
 from pipeline.types import Frame
 
-__all__ = ["SimSource"]
+__all__ = ["SimSource", "SimSourceBeside"]
 
 
 class SimSource:
@@ -89,3 +89,36 @@ class SimSource:
     def result(self) -> SimResult:
         """The run so far: contacts, separations, the robot's log."""
         return self.sim.result()
+
+
+class SimSourceBeside:
+    """A closed-loop simulator source with another sensor's work done beside it (the microphone
+    array, the marking localisation): ``inner``'s name, length, commands and result, while a
+    subclass's :meth:`frames` adds what that sensor found to ``inner``'s frames."""
+
+    live = False
+
+    def __init__(self, inner: SimSource) -> None:
+        self.inner = inner
+
+    @property
+    def name(self) -> str:
+        """The inner source's name."""
+        return self.inner.name
+
+    @property
+    def n_frames(self) -> int:
+        """The inner source's scan count."""
+        return self.inner.n_frames
+
+    def frames(self) -> Iterator[Frame]:
+        """The inner source's frames, unchanged (a subclass adds its sensor's work)."""
+        return self.inner.frames()
+
+    def command(self, speed_mps: float, at_s: float) -> None:
+        """The runtime's command, passed to the inner source."""
+        self.inner.command(speed_mps, at_s)
+
+    def result(self) -> SimResult:
+        """The inner run's result."""
+        return self.inner.result()
