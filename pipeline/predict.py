@@ -26,6 +26,9 @@ features, over the horizon ``H`` (``predict.horizon_s``, 1.5 s):
 * **unscored or low confidence** (confidence below ``classify.medium_confidence_min``): any
   direction, the disc of radius ``(s + r) H``, which holds every region above.
 
+Whatever the mode, every row says whether the track may be a person (:func:`person_compatible`):
+the envelopes then give it at least the person's closing speed (SR-CLS-8).
+
 Every track's body is a disc about its reference point: half the diagonal of its box, at
 least ``predict.min_body_radius_m``, plus ``k`` standard deviations of its position estimate.
 Arcs are drawn as circumscribed polygons (:func:`sector_points`), so hulls of the points
@@ -60,6 +63,7 @@ __all__ = [
     "KinematicPredictor",
     "confirmed_heading_rad",
     "near_reversal_flags",
+    "person_compatible",
     "predict",
     "track_modes",
 ]
@@ -67,6 +71,8 @@ __all__ = [
 _NEAR_REVERSAL_FEATURE = feature_index("is_near_reversal")
 _SPEED_FEATURE = feature_index("velocity_magnitude_mps")
 _SINCE_MOVING_FEATURE = feature_index("time_since_moving_s")
+_WIDTH_FEATURE = feature_index("bbox_width_m")
+_LENGTH_FEATURE = feature_index("bbox_length_m")
 
 
 def near_reversal_flags(features: TrackFeatures, predict: PredictSection) -> BoolArray:
@@ -85,6 +91,25 @@ def near_reversal_flags(features: TrackFeatures, predict: PredictSection) -> Boo
     )
     flags: BoolArray = (v[:, _NEAR_REVERSAL_FEATURE] > 0.5) | recent
     return flags
+
+
+def person_compatible(features: TrackFeatures, predict: PredictSection) -> BoolArray:
+    """Per track: may it be a person, whatever class the classifier gave it? (SR-CLS-8)
+
+    True unless the box of the track's cluster is longer or wider than
+    ``predict.person_max_extent_m``: a larger cluster is not a person alone (the clusters at
+    the labelled legs of the leg_tracker bags are at most 0.43 m long in 99 % of scans, the
+    simulator's people at most 0.83 m; docs/findings/classification.md). A track without a box
+    (NaN) is compatible. Nothing else measured on a track excludes a person: a standing person
+    is slow, small and still until it walks, so neither a slow speed nor a long still history
+    lowers the closing speed of a person-sized track.
+    """
+    v = features.values
+    bound = predict.person_max_extent_m
+    # NaN compares False: a track without a box stays compatible.
+    larger = (v[:, _WIDTH_FEATURE] > bound) | (v[:, _LENGTH_FEATURE] > bound)
+    compatible: BoolArray = ~larger
+    return compatible
 
 
 def confirmed_heading_rad(
@@ -238,6 +263,7 @@ def predict(
         class_index=classification.class_index[rows],
         confidence=confidence[rows],
         near_reversal=two_mode,
+        person_compatible=person_compatible(features, pc)[rows],
         speed_mps=np.where(reverse, np.maximum(reach_speed, pc.reversal_speed_mps), reach_speed),
         heading_rad=heading,
         body_radius_m=body[rows],

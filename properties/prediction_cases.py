@@ -121,9 +121,11 @@ def classification(tracks: Tracks, class_name: str | None, confidence: float) ->
 
 
 def features_for(tracks: Tracks, near_reversal: bool) -> TrackFeatures:
-    """Feature rows with the near-reversal flag set or not, the tracks' speeds and a history
-    that never moved (what prediction reads)."""
+    """Feature rows with the near-reversal flag set or not, the tracks' speeds and boxes, and a
+    history that never moved (what prediction reads)."""
     values = np.zeros((tracks.n, N_FEATURES))
+    values[:, feature_index("bbox_width_m")] = tracks.width_m
+    values[:, feature_index("bbox_length_m")] = tracks.length_m
     values[:, feature_index("is_near_reversal")] = float(near_reversal)
     values[:, feature_index("velocity_magnitude_mps")] = np.hypot(
         tracks.state[:, 2], tracks.state[:, 3]

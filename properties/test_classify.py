@@ -38,12 +38,16 @@ from safety.geometry.envelopes import EnvelopeBuilder
 
 CODE = ["pipeline/classify/model.py", "pipeline/classify/trees.py"]
 HELDOUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "classify" / "heldout.npz"
-# Published per-class accuracy of the source material (the system we implement).
+# Published per-class accuracy of the source material (the system we implement), stated "for
+# a forklift at typical detection ranges (2 to 8 m)": SR-CLS-2 is graded on that cut.
 PUBLISHED = {
     "forklift_moving": 0.943,
     "forklift_stationary": 0.917,
     "forklift_near_reversal": 0.881,
 }
+SOURCE_CUT_M = (2.0, 8.0)
+# Range bands reported beside the source's cut [m, from the robot; each [lo, hi)].
+RANGE_BANDS_M = [(0.0, 2.0), SOURCE_CUT_M, (8.0, 20.0), (20.0, math.inf), (0.0, math.inf)]
 
 
 @pytest.fixture(scope="module")
@@ -201,13 +205,6 @@ def test_heldout_accuracy_against_the_published_figures(
     evidence.plot("confusion matrix", _confusion_figure(confusion, names), caption="rows: truth")
     published = {name: names.index(name) for name in PUBLISHED}
     roles = row_roles(heldout, safecase_config)
-    bands = [(0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, math.inf)]
-    evidence.table(
-        "held-out accuracy by range from the robot",
-        ["class", *[f"{lo:g}-{hi:g} m" for lo, hi in bands]],
-        accuracy_in_bands(label, predicted, published, heldout.range_m, bands),
-        caption="far objects return few points (1080 beams: 0.33 deg, 5.8 cm at 10 m)",
-    )
     # How much of the object the cluster shows: a forklift is 2.3-3.1 m long, so a box
     # shorter than 0.5 m is a sliver (a fork tip, a mast seen past an occluder).
     length = heldout.features[:, feature_index("bbox_length_m")]
@@ -273,12 +270,66 @@ def test_heldout_accuracy_against_the_published_figures(
             assert acc == pytest.approx(card[name]["accuracy"], abs=1e-12), name
 
 
-@pytest.mark.requirement(
-    "SR-CLS-2", kind="measurement", code=[*CODE, "pipeline/features.py", "pipeline/shape/ends.py"]
-)
+def _in_cut(rows: Rows) -> np.ndarray:
+    """Rows inside the source's 2-8 m cut (``[2, 8)`` m from the robot)."""
+    lo, hi = SOURCE_CUT_M
+    return (rows.range_m >= lo) & (rows.range_m < hi)
+
+
+def _band_name(lo: float, hi: float) -> str:
+    if lo == 0.0 and hi == math.inf:
+        return "all ranges"
+    return f"beyond {lo:g} m" if hi == math.inf else f"{lo:g}-{hi:g} m"
+
+
+SR_CLS_2_CODE = [*CODE, "pipeline/features.py", "pipeline/shape/ends.py"]
+
+
+@pytest.mark.requirement("SR-CLS-2", kind="measurement", code=SR_CLS_2_CODE)
+def test_heldout_accuracy_on_the_source_cut(
+    classifier: Classifier, heldout: Rows, evidence: Recorder
+) -> None:
+    """Forklift recall on the held-out rows at 2-8 m (the source's cut) against the published
+    figures, every other range band and all ranges beside it (the assertion is the xfail below:
+    this test reports)."""
+    names = classifier.class_names
+    predicted = classifier.probabilities(heldout.features).argmax(axis=1)
+    label = heldout.model_label
+    published = {name: names.index(name) for name in PUBLISHED}
+    table = accuracy_in_bands(label, predicted, published, heldout.range_m, RANGE_BANDS_M)
+    cut = _in_cut(heldout)
+    verdict = {}
+    for row, (name, code) in zip(table, published.items(), strict=True):
+        mine = cut & (label == code)
+        reached = float((predicted[mine] == code).mean()) if mine.any() else 0.0
+        verdict[name] = reached
+        row.insert(1, f"{PUBLISHED[name]:.1%}")
+        row.append("met" if reached >= PUBLISHED[name] else "MISSED")
+    evidence.table(
+        "SR-CLS-2: held-out forklift recall by range band (graded on the source's 2-8 m cut)",
+        [
+            "class",
+            "published (2-8 m)",
+            *[_band_name(lo, hi) for lo, hi in RANGE_BANDS_M],
+            "target (2-8 m)",
+        ],
+        table,
+        caption="range from the robot, bands [lo, hi); the source states its figures for a "
+        "forklift at 2 to 8 m, so the 2-8 m column is graded; the others are reported",
+    )
+    evidence.counts(
+        "SR-CLS-2 on the 2-8 m cut",
+        {f"{name} recall": round(value, 4) for name, value in verdict.items()}
+        | {"rows in the cut": int(cut.sum())},
+    )
+    assert int(cut.sum()) > 0, "no held-out row lies in the 2-8 m cut"
+
+
+@pytest.mark.requirement("SR-CLS-2", kind="measurement", code=SR_CLS_2_CODE)
 @pytest.mark.xfail(
-    reason="the published per-class accuracy is not reached (docs/findings/classification.md); "
-    "strict: reaching it fails this marker, and SR-CLS-2 can then be claimed",
+    reason="the published per-class accuracy is not reached on the 2-8 m cut "
+    "(docs/findings/classification.md); strict: reaching it fails this marker, and SR-CLS-2 "
+    "can then be claimed",
     strict=True,
 )
 def test_heldout_accuracy_reaches_the_published_figures(
@@ -286,12 +337,13 @@ def test_heldout_accuracy_reaches_the_published_figures(
 ) -> None:
     predicted = classifier.probabilities(heldout.features).argmax(axis=1)
     names = classifier.class_names
+    cut = _in_cut(heldout)
     reached = {}
     for name in PUBLISHED:
-        mine = heldout.model_label == names.index(name)
+        mine = cut & (heldout.model_label == names.index(name))
         reached[name] = float((predicted[mine] == names.index(name)).mean())
     missed = {k: f"{v:.1%} < {PUBLISHED[k]:.1%}" for k, v in reached.items() if v < PUBLISHED[k]}
-    assert not missed, f"below the published accuracy: {missed}"
+    assert not missed, f"below the published accuracy at 2-8 m: {missed}"
 
 
 def _confusion_figure(confusion: np.ndarray, names: tuple[str, ...]) -> object:
@@ -348,7 +400,10 @@ def test_model_hash_is_verified_on_load_and_recorded(
     )
 
 
-TARGET_20_TRACKS_S = 0.4e-3
+# SR-CLS-4: the runtime path at least this many times faster than xgboost's inplace_predict at
+# the p50 and at the p99 of the same interleaved run (a ratio: load on the shared machine hits
+# both alike, where an absolute time would measure the machine).
+TARGET_SPEEDUP = 3.0
 
 
 @pytest.fixture(scope="module")
@@ -378,6 +433,7 @@ def test_inference_speed_20_tracks(
 
 
 @pytest.mark.requirement("SR-CLS-4", kind="measurement", code=CODE)
+@pytest.mark.requirement("SR-CLS-7", kind="measurement", code=CODE)
 def test_inference_speed_ratio(
     classifier: Classifier, oracle: object, twenty_tracks: FloatArray, evidence: Recorder
 ) -> None:
@@ -394,19 +450,25 @@ def test_inference_speed_ratio(
         reference="xgboost inplace_predict",
         rounds=2000 if active_profile() == "certify" else 300,
         title="classifier, 20 tracks",
-        target_s=TARGET_20_TRACKS_S,
     )
     ours = timings["ours (leaf bitmasks, numpy)"]
+    ref = timings["xgboost inplace_predict"]
+    p50, p99 = ref.p50_s / ours.p50_s, ref.p99_s / ours.p99_s
     evidence.counts(
         "classifier, 20 tracks",
         {
+            "ours p50 ms": round(ours.p50_s * 1e3, 4),
             "ours p99 ms": round(ours.p99_s * 1e3, 4),
-            "target p99 ms": TARGET_20_TRACKS_S * 1e3,
+            "speed-up over inplace_predict at p50": round(p50, 2),
+            "speed-up over inplace_predict at p99": round(p99, 2),
+            "target speed-up (p50 and p99)": TARGET_SPEEDUP,
+            "target met": int(min(p50, p99) >= TARGET_SPEEDUP),
             "trees": classifier.ensemble.n_trees,
         },
     )
     evidence.note(
         f"{classifier.ensemble.n_trees} trees ({len(classifier.class_names)} classes x "
-        f"{classifier.ensemble.n_trees // len(classifier.class_names)} rounds); measured on a "
-        "shared 2-core machine, re-measure on an idle one"
+        f"{classifier.ensemble.n_trees // len(classifier.class_names)} rounds); speed-up over "
+        f"inplace_predict {p50:.2f}x at p50, {p99:.2f}x at p99 (target {TARGET_SPEEDUP:g}x at "
+        "both; reported, not asserted: SR-CLS-7); measured on a shared 2-core machine"
     )

@@ -1,23 +1,17 @@
-"""Campaign: the classifier on the real, labelled leg_tracker bags (SR-CLS-5; no target yet).
+"""Campaign: people on the real, labelled leg_tracker bags (SR-CLS-5, SR-CLS-9, SR-CLS-10).
 
-``positive_N_extracted.bag`` (leg_tracker, Leigh et al. ICRA 2015, BSD-3-Clause) holds scans on
-``/training_scan`` and, recorded just before each scan, the hand-labelled leg positions of
-that scan on ``/leg_cluster_positions`` (a PoseArray in the laser's frame; the header stamps
-are zero, so labels pair with scans in recording order). ``negative_2.bag`` holds three
-lasers' scans with nobody in view. Each scan stream goes through clustering, tracking (in the
-laser's own frame: the bags carry no odometry), features and the configured classifier.
-
-Reported: per labelled leg, whether our clustering kept a cluster there (a point within
-``cluster.eps_m`` of the label), whether a scored track follows it, and its class; and on the
-negative bag the share of scored track rows (and of tracks) called person.
+The chain and the per-leg bookkeeping are :mod:`properties.real_legs` (its docstring says what
+counts as what). No bag here was used in training (the classifier is trained on the simulator
+alone), so every figure is on scans the model never saw. Reported per bag: the share of
+labelled legs in a cluster classified person, the safety-relevant errors (a labelled leg whose
+track's closing speed is below the person speed) with the person floor (SR-CLS-8) and without
+it, whether a leg pair is one cluster or two; on ``negative_2.bag`` the person false positives
+per scan and how many scored track rows the floor raises (its reach on scans without people).
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -25,99 +19,56 @@ import pytest
 from evidence.record import Recorder
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from pipeline.perception import Perception
-from pipeline.sources.logs.bags import laserscan_topics
-from pipeline.sources.logs.source import LogSource
-from pipeline.types import FloatArray, Frame
-from safety.model.freshness import is_fresh
+from properties.real_legs import LEGS, BagLegs, NegativeTopic, negative_topics, positive_bags
 
-# The labelled bags are BSD-3 and copied into the repository (source in the folder's SOURCE.md),
-# so this campaign runs on a fresh clone too.
-LEGS = Path(__file__).resolve().parents[1] / "tests" / "data" / "leg_tracker"
 CODE = ["pipeline/classify/model.py", "pipeline/features.py"]
+FLOOR_CODE = [*CODE, "pipeline/predict.py", "safety/geometry/envelopes.py"]
+# SR-CLS-9 and SR-CLS-10 targets (issue 26).
+PERSON_SHARE_MIN = 0.90
+SAFETY_ERROR_SHARE_MAX = 0.01
 
 
-def _leg_labels(bag: Path) -> list[FloatArray]:
-    """The labelled leg positions (k, 2) of each scan, in recording order."""
-    from rosbags.rosbag1 import Reader
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.ROS1_NOETIC)
-    out: list[FloatArray] = []
-    with Reader(bag) as reader:
-        chosen = [c for c in reader.connections if c.topic == "/leg_cluster_positions"]
-        for connection, _, raw in reader.messages(connections=chosen):
-            msg: Any = store.deserialize_ros1(raw, connection.msgtype)
-            out.append(
-                np.array(
-                    [[p.position.x, p.position.y] for p in msg.poses], dtype=np.float64
-                ).reshape(-1, 2)
-            )
-    return out
+@pytest.fixture(scope="module")
+def bags(safecase_config: SafecaseConfig) -> list[BagLegs]:
+    assert LEGS.is_dir(), f"{LEGS} is part of the repository"
+    return positive_bags(safecase_config, Classifier.from_config(safecase_config.classify))
 
 
-def _chain(config: SafecaseConfig, classifier: Classifier) -> Perception:
-    """The perception chain for one scan stream (laser frame: the bags carry no odometry)."""
-    return Perception.from_config(config, classifier=classifier, guard=is_fresh)
+@pytest.fixture(scope="module")
+def negatives(safecase_config: SafecaseConfig) -> list[NegativeTopic]:
+    return negative_topics(safecase_config, Classifier.from_config(safecase_config.classify))
 
 
-def _frames(bag: Path, topic: str) -> Iterator[Frame]:
-    """The bag's frames through the stamp rule every log source follows."""
-    return LogSource(bag, scan_topic=topic).frames()
+def _share(n: int, of: int) -> str:
+    return f"{n / max(of, 1):.1%}"
 
 
 @pytest.mark.requirement("SR-CLS-5", kind="campaign", code=CODE)
 def test_labelled_legs_and_person_false_positives(
-    safecase_config: SafecaseConfig, evidence: Recorder
+    bags: list[BagLegs], negatives: list[NegativeTopic], evidence: Recorder
 ) -> None:
-    assert LEGS.is_dir(), f"{LEGS} is part of the repository"
-    config = safecase_config
-    classifier = Classifier.from_config(config.classify)
-    person = classifier.class_index("person")
-    eps = config.cluster.eps_m
+    rows = []
     outcome: Counter[str] = Counter()
     called: Counter[str] = Counter()
-    rows = []
-    for bag in sorted(LEGS.glob("positive_*_extracted.bag")):
-        labels = _leg_labels(bag)
-        chain = _chain(config, classifier)
-        per_bag: Counter[str] = Counter()
-        for frame, legs in zip(_frames(bag, "/training_scan"), labels, strict=False):
-            seen = chain.perceive(frame)
-            points, clusters, tracks = seen.points, seen.clusters, seen.tracked.tracks
-            result = seen.classification
-            xy = np.stack([points.x_m, points.y_m], axis=1)
-            for leg in legs:
-                near = np.hypot(*(xy - leg).T) <= eps
-                kept = clusters.point_labels[near]
-                kept = kept[kept >= 0]
-                if not kept.size:
-                    per_bag["no kept cluster at the label"] += 1
-                    continue
-                cluster = int(np.bincount(kept).argmax())
-                follow = np.flatnonzero(tracks.detection_index == cluster)
-                if not follow.size or result.class_index[follow[0]] < 0:
-                    per_bag["cluster, track not yet scored"] += 1
-                    continue
-                k = int(result.class_index[follow[0]])
-                per_bag["scored person" if k == person else "scored other class"] += 1
-                called[classifier.class_names[k]] += 1
-        n_legs = sum(per_bag.values())
-        scored = per_bag["scored person"] + per_bag["scored other class"]
+    for b in bags:
+        scored = b.person + b.outcome["scored other class"]
         rows.append(
             [
-                bag.name,
-                len(labels),
-                n_legs,
-                f"{per_bag['scored person'] / max(n_legs, 1):.1%}",
-                f"{per_bag['scored person'] / max(scored, 1):.1%}",
-                per_bag["no kept cluster at the label"],
-                per_bag["cluster, track not yet scored"],
+                b.bag,
+                b.scans,
+                b.legs,
+                _share(b.person, b.legs),
+                _share(b.person, scored),
+                b.outcome["no kept cluster at the label"],
+                b.outcome["cluster, track not yet scored"],
+                f"{b.errors_without_floor} ({_share(b.errors_without_floor, b.legs)})",
+                f"{b.errors_with_floor} ({_share(b.errors_with_floor, b.legs)})",
             ]
         )
-        outcome.update(per_bag)
+        outcome.update(b.outcome)
+        called.update(b.called)
     evidence.table(
-        "labelled legs (positive bags): share in a cluster classified person",
+        "labelled legs (positive bags): person clusters and safety-relevant errors",
         [
             "bag",
             "scans",
@@ -126,46 +77,92 @@ def test_labelled_legs_and_person_false_positives(
             "person (of scored legs)",
             "no kept cluster",
             "not yet scored",
+            "closing below the person speed, no floor",
+            "with the person floor (SR-CLS-8)",
         ],
         rows,
-        caption="a leg counts when a kept cluster has a point within cluster.eps_m of the "
-        "label and the track it updates is classified person",
+        caption="a leg counts as person when a kept cluster has a point within cluster.eps_m of "
+        "the label and the track it updates is classified person; a safety-relevant error is a "
+        "leg whose track's smallest envelope closing speed is below stopping.person_speed_mps",
     )
     evidence.counts("labelled legs", dict(outcome))
     evidence.counts("classes given to scored legs", dict(called))
-
-    negative = LEGS / "negative_2.bag"
-    fp_rows = []
-    totals: Counter[str] = Counter()
-    for topic in laserscan_topics(negative):
-        chain = _chain(config, classifier)
-        n_rows = n_person = 0
-        ids: set[int] = set()
-        person_ids: set[int] = set()
-        for frame in _frames(negative, topic):
-            seen = chain.perceive(frame)
-            tracks, result = seen.tracked.tracks, seen.classification
-            is_scored = result.class_index >= 0
-            n_rows += int(is_scored.sum())
-            hit = is_scored & (result.class_index == person)
-            n_person += int(hit.sum())
-            ids.update(tracks.track_id[is_scored].tolist())
-            person_ids.update(tracks.track_id[hit].tolist())
-        fp_rows.append(
-            [
-                topic,
-                n_rows,
-                f"{n_person / max(n_rows, 1):.2%}",
-                len(ids),
-                f"{len(person_ids) / max(len(ids), 1):.1%}",
-            ]
-        )
-        totals.update({"scored rows": n_rows, "person rows": n_person})
     evidence.table(
-        "negative_2.bag (nobody in view): person false positives",
-        ["topic", "scored track rows", "called person", "tracks", "tracks ever called person"],
-        fp_rows,
+        "labelled leg pairs (scans with two labelled legs, both in kept clusters)",
+        ["bag", "one cluster", "two clusters"],
+        [[b.bag, b.pair_one_cluster, b.pair_two_clusters] for b in bags],
+        caption="768 beams over 270 deg (the bags' laser); eps 0.15 m",
+    )
+    extent = np.concatenate([np.asarray(b.extent_m) for b in bags])
+    evidence.counts(
+        "box of the cluster at a labelled leg (longer side) [m]",
+        {f"p{q}": round(float(np.percentile(extent, q)), 3) for q in (50, 90, 99)}
+        | {"max": round(float(extent.max()), 3), "clusters": int(extent.size)},
+    )
+    evidence.table(
+        "negative_2.bag (nobody in view): person false positives and the floor's reach",
+        [
+            "topic",
+            "scans",
+            "scored track rows",
+            "called person",
+            "person per scan",
+            "tracks ever called person",
+            "rows raised by the person floor",
+        ],
+        [
+            [
+                n.topic,
+                n.scans,
+                n.scored_rows,
+                _share(n.person_rows, n.scored_rows),
+                f"{n.person_rows / max(n.scans, 1):.2f}",
+                f"{n.person_tracks} of {n.tracks}",
+                _share(n.raised_rows, n.scored_rows),
+            ]
+            for n in negatives
+        ],
         caption="laser-frame tracking, no odometry in the bag",
     )
-    evidence.counts("negative_2.bag", dict(totals))
-    assert sum(outcome.values()) > 0, "no labelled legs were read"
+    assert sum(b.legs for b in bags) > 0, "no labelled legs were read"
+
+
+@pytest.mark.requirement("SR-CLS-9", kind="campaign", code=CODE)
+@pytest.mark.xfail(
+    reason="the classifier, trained on the simulator's people alone, calls about 55 % of the "
+    "labelled legs person (docs/findings/classification.md); strict: reaching 90 % fails this "
+    "marker, and SR-CLS-9 can then be claimed",
+    strict=True,
+)
+def test_labelled_legs_are_in_person_clusters(bags: list[BagLegs]) -> None:
+    """Over the given bags (pooled, as the target is stated); per bag in the SR-CLS-5 table."""
+    person, legs = sum(b.person for b in bags), sum(b.legs for b in bags)
+    assert person >= PERSON_SHARE_MIN * legs, (
+        f"labelled legs in person clusters: {person} of {legs} ({person / legs:.1%}) < "
+        f"{PERSON_SHARE_MIN:.0%}"
+    )
+
+
+@pytest.mark.requirement("SR-CLS-10", kind="campaign", code=FLOOR_CODE)
+def test_labelled_people_close_at_least_at_the_person_speed(
+    bags: list[BagLegs], evidence: Recorder
+) -> None:
+    """With the person floor, at most 1 % of the labelled legs of the given bags (pooled, as
+    the target is stated; per bag in the SR-CLS-5 table) belong to a track given a closing
+    speed below the person speed."""
+    legs = sum(b.legs for b in bags)
+    errors = sum(b.errors_with_floor for b in bags)
+    evidence.counts(
+        "safety-relevant person errors (all positive bags)",
+        {
+            "labelled legs": legs,
+            "errors without the floor": sum(b.errors_without_floor for b in bags),
+            "errors with the floor": errors,
+        }
+        | {f"{b.bag}: errors with the floor": b.errors_with_floor for b in bags},
+    )
+    assert legs > 0, "no labelled legs were read"
+    assert errors <= SAFETY_ERROR_SHARE_MAX * legs, (
+        f"safety-relevant person errors: {errors} of {legs} ({errors / legs:.2%}) > "
+        f"{SAFETY_ERROR_SHARE_MAX:.0%}"
+    )

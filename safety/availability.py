@@ -47,6 +47,7 @@ __all__ = [
     "Shadow",
     "binding_kind",
     "compare",
+    "compare_all",
     "run_baseline",
     "run_metrics",
     "run_oracle",
@@ -310,6 +311,39 @@ def compare(
         shadow,
         sims[0].lidar.spec.scan_period_s,
     )
+
+
+def _compare_task(item: tuple[SafecaseConfig, str, int, float | None]) -> Comparison:
+    """One comparison on a worker (module level, so that a Dask worker can import it)."""
+    config, name, seed, duration_s = item
+    return compare(config, name, seed, duration_s)
+
+
+def compare_all(
+    config: SafecaseConfig,
+    runs: Sequence[tuple[str, int, float | None]],
+    *,
+    workers: int = 1,
+    classifier: Classifier | None = None,
+) -> Campaign:
+    """Every ``(scenario, seed, duration_s)`` of ``runs`` compared (:func:`compare`), in the
+    order given. With ``workers`` > 1 the runs go to a LocalCluster of that many processes
+    (:mod:`pipeline.distributed`); each run is seeded by its item alone, so the figures do not
+    depend on the number of workers. A run that raised raises here, naming it."""
+    if workers <= 1:
+        model = classifier if classifier is not None else Classifier.from_config(config.classify)
+        return Campaign([compare(config, n, s, d, classifier=model) for n, s, d in runs])
+    from pipeline.distributed import TaskFailed, in_order, open_client  # Dask only when asked
+
+    items = [(config, n, s, d) for n, s, d in runs]
+    done: list[Comparison] = []
+    with open_client(workers=workers) as client:
+        for outcome in in_order(client, _compare_task, items):
+            if isinstance(outcome.result, TaskFailed):
+                name, seed, _ = runs[outcome.index]
+                raise RuntimeError(f"{name} seed {seed}: {outcome.result.error}")
+            done.append(outcome.result)
+    return Campaign(done)
 
 
 @dataclass(frozen=True)

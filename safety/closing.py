@@ -12,8 +12,9 @@ way at its full speed bound.
 The cone is read off the prediction's own reach region: its heading (``heading_rad``) and the
 largest angle between that heading and any vertex of the region seen from the track's position
 (the sector's apex), so the half-angle covers the predictor's cone plus the heading's own
-uncertainty exactly as the region was drawn. People keep the ISO 13855 walking speed (they turn
-on the spot), near-reversal, unknown and still rows their class speeds.
+uncertainty exactly as the region was drawn. People, and every track that may be a person
+(``Predictions.person_compatible``, SR-CLS-8), keep the ISO 13855 walking speed (they turn on
+the spot); near-reversal, unknown and still rows keep their class speeds.
 
 This is an allowance on top of what already holds the object: the zone (reach region grown by
 the body) contains the object for the whole horizon (SR-PRED-1), and the horizon covers the
@@ -41,11 +42,13 @@ _APEX_M = 1e-9
 
 
 def directed_rows(pred: Predictions, class_names: tuple[str, ...]) -> BoolArray:
-    """Rows whose closing speed is direction-aware: CONE mode, not a person, a heading."""
+    """Rows whose closing speed is direction-aware: CONE mode, neither classified nor
+    compatible with a person (SR-CLS-8), a heading."""
     person = class_names.index(PERSON_CLASS) if PERSON_CLASS in class_names else -2
     rows: BoolArray = (
         (pred.mode == int(PredictionMode.CONE))
         & (pred.class_index != person)
+        & ~pred.person_compatible
         & np.isfinite(pred.heading_rad)
     )
     return rows

@@ -119,12 +119,23 @@ class TrackSection(Section):
     max_dormant: int = Field(50, ge=0, le=10_000)
     dormant_prediction_cap_s: float = Field(3.0, ge=0.0, le=60.0)
     max_tracks: int = Field(64, ge=1, le=10_000)
-    reid_enabled: bool = True
+    # Off by default (SR-AVL-7, SR-TRK-9): on ray-cast runs a dormant track is often given to
+    # another object (a walker's other leg, the next walker), and the velocity it then reports
+    # set most of the robot's needless stops; docs/findings/availability.md has the figures.
+    reid_enabled: bool = False
     max_detections: int = Field(64, ge=1, le=10_000)
     init_velocity_std_mps: float = Field(2.0, gt=0.0, le=100.0)
     # Size comparison for re-identification: |a - b| <= tolerance * max(a, b, floor), so
     # leg-sized clusters are not refused over a few centimetres of noise.
     reid_size_floor_m: float = Field(0.1, ge=0.0, le=10.0)
+    # Re-identification within the domain (SR-AVL-7): after a gap of h seconds a dormant track
+    # takes only a detection within 0.5 * reid_max_accel * h^2 + half its largest size +
+    # reid_slack_m of its constant-velocity prediction (every place an object of the operating
+    # domain, accelerating at most reid_max_accel_mps2, can have reached, seen from any side),
+    # keeps its velocity estimate and widens that estimate's standard deviation by
+    # reid_max_accel * h (every velocity it can have reached).
+    reid_max_accel_mps2: float = Field(2.5, gt=0.0, le=50.0)
+    reid_slack_m: float = Field(0.15, ge=0.0, le=10.0)
     # Association (SR-TRK-8): "hungarian" the gated cascade everywhere; "jpda" joint
     # probabilistic data association where confirmed tracks share gated detections, the
     # cascade elsewhere (pipeline/track/jpda.py). A cluster of tracks whose joint hypotheses
@@ -204,7 +215,8 @@ class PredictSection(Section):
     No object of the operating domain moves faster than
     ``max_object_speed_mps``: it caps every speed bound (an assumption; the runtime stops when a
     confirmed track is seen faster). ``step_s`` samples the horizon where a finite set of times is
-    needed (evaluation).
+    needed (evaluation). A track whose cluster's box is at most ``person_max_extent_m`` long and
+    wide may be a person whatever its class (:func:`pipeline.predict.person_compatible`, SR-CLS-8).
     """
 
     horizon_s: float = Field(1.5, gt=0.0, le=10.0)
@@ -220,6 +232,7 @@ class PredictSection(Section):
     arc_step_deg: float = Field(15.0, ge=1.0, le=45.0)
     disc_sides: int = Field(12, ge=6, le=64)
     heading_min_travel_m: float = Field(0.3, ge=0.0, le=10.0)
+    person_max_extent_m: float = Field(1.0, gt=0.0, le=5.0)
 
 
 class FusionSection(Section):

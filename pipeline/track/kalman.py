@@ -22,6 +22,7 @@ __all__ = [
     "largest_std",
     "predict",
     "process_noise",
+    "reacquire",
     "transition",
     "update",
 ]
@@ -124,6 +125,42 @@ def update(
     kt = np.swapaxes(k, 1, 2)
     ap = p - np.matmul(k, p[:, :_H_ROWS, :])
     p_new = ap - np.matmul(ap[:, :, :_H_ROWS], kt) + r * np.matmul(k, kt)
+    return x_new, _symmetric(p_new)
+
+
+def reacquire(
+    x: FloatArray,
+    p: FloatArray,
+    z_m: FloatArray,
+    position_std_m: FloatArray,
+    velocity_widen_mps: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Re-acquire predicted tracks ``x`` (n, 4), ``p`` at measurements ``z_m`` (n, 2) after a gap.
+
+    The position is updated from the position block alone with a measurement standard
+    deviation ``position_std_m`` (n,) (the centroid of a view of another side of the object);
+    the velocity estimate is kept, its standard deviation widened by ``velocity_widen_mps`` (n,)
+    on each axis (added in quadrature), with no position-velocity correlation left. After a long
+    gap the correlation that :func:`predict` builds would turn the whole position innovation into
+    a velocity, which the measurement cannot tell from a change of view (SR-AVL-7).
+    """
+    r = (position_std_m * position_std_m)[:, None, None]
+    pp = p[:, :_H_ROWS, :_H_ROWS]
+    s = pp + r * np.eye(_H_ROWS)
+    det = s[:, 0, 0] * s[:, 1, 1] - s[:, 0, 1] * s[:, 1, 0]
+    s_inv = np.stack(
+        [np.stack([s[:, 1, 1], -s[:, 0, 1]], 1), np.stack([-s[:, 1, 0], s[:, 0, 0]], 1)], 1
+    )
+    k = np.matmul(pp, s_inv / det[:, None, None])
+    a = np.eye(_H_ROWS) - k
+    x_new = x.copy()
+    x_new[:, :_H_ROWS] += np.matmul(k, (z_m - x[:, :_H_ROWS])[:, :, None])[:, :, 0]
+    p_new = np.zeros_like(p)
+    p_new[:, :_H_ROWS, :_H_ROWS] = np.matmul(
+        np.matmul(a, pp), np.swapaxes(a, 1, 2)
+    ) + r * np.matmul(k, np.swapaxes(k, 1, 2))
+    widen = velocity_widen_mps * velocity_widen_mps
+    p_new[:, _H_ROWS:, _H_ROWS:] = p[:, _H_ROWS:, _H_ROWS:] + widen[:, None, None] * np.eye(2)
     return x_new, _symmetric(p_new)
 
 

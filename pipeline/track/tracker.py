@@ -48,6 +48,7 @@ __all__ = [
     "TrackerError",
     "associator_for",
     "detections_in_frame",
+    "reid_reach_m",
 ]
 # CycleCounts, Detections and TrackerError live in pipeline.types (shared with the roles).
 
@@ -82,6 +83,17 @@ def detections_in_frame(clusters: Clusters, pose: Pose) -> Detections:
         end_xy_m=moved[:, 1:].reshape(-1, 4),
         heading_rad=heading,
     )
+
+
+def reid_reach_m(horizon_s: FloatArray, size_m: FloatArray, config: TrackSection) -> FloatArray:
+    """How far [m] from its constant-velocity prediction a dormant track's detection may lie
+    after ``horizon_s`` (n,) seconds: an object accelerating at most
+    ``track.reid_max_accel_mps2`` reaches ``0.5 * a * h^2``, a view of another side moves the
+    centroid by up to half its largest size ``size_m`` (n,), plus ``track.reid_slack_m``
+    (SR-AVL-7)."""
+    a = config.reid_max_accel_mps2
+    reach: FloatArray = 0.5 * a * horizon_s * horizon_s + 0.5 * size_m + config.reid_slack_m
+    return reach
 
 
 def associator_for(config: TrackSection) -> Associator:
@@ -176,18 +188,24 @@ class Tracker:
         hit_dets = match[match >= 0]
         n_confirmed_hits = int(np.count_nonzero(confirmed & (match >= 0)))
 
-        reid_slots, reid_dets = self._reidentify(stamp, det_xy, det_wl, free)
+        reid_slots, reid_dets, reid_widen = self._reidentify(stamp, det_xy, det_wl, free)
         free[reid_dets] = False
         slots = np.concatenate([hit_slots, reid_slots])
         dets = np.concatenate([hit_dets, reid_dets])
-        kalman_rows = np.concatenate([~pda[match >= 0], np.ones(reid_slots.shape[0], dtype=bool)])
+        kalman_rows = ~pda[match >= 0]
         st.detection_index[st.status != FREE] = -1
+        if reid_slots.shape[0]:
+            st.x[reid_slots], st.p[reid_slots] = kalman.reacquire(
+                st.x[reid_slots],
+                st.p[reid_slots],
+                det_xy[reid_dets],
+                np.hypot(c.measurement_std_m, 0.5 * st.mean_size(reid_slots).max(axis=1)),
+                reid_widen,
+            )
+        ks, kd = hit_slots[kalman_rows], hit_dets[kalman_rows]
+        if ks.shape[0]:
+            st.x[ks], st.p[ks] = kalman.update(st.x[ks], st.p[ks], det_xy[kd], c.measurement_std_m)
         if slots.shape[0]:
-            ks, kd = slots[kalman_rows], dets[kalman_rows]
-            if ks.shape[0]:
-                st.x[ks], st.p[ks] = kalman.update(
-                    st.x[ks], st.p[ks], det_xy[kd], c.measurement_std_m
-                )
             st.x_post[slots] = st.x[slots]
             st.p_post[slots] = st.p[slots]
             st.last_update_s[slots] = stamp
@@ -240,14 +258,16 @@ class Tracker:
 
     def _reidentify(
         self, stamp: float, det_xy: FloatArray, det_wl: FloatArray, free: np.ndarray
-    ) -> tuple[IntArray, IntArray]:
-        """Match dormant tracks to leftover detections; primes matched slots for the update."""
+    ) -> tuple[IntArray, IntArray, FloatArray]:
+        """Match dormant tracks to leftover detections within the domain's reach
+        (:func:`reid_reach_m`); primes the matched slots with their prediction and returns
+        them, their detections and the velocity widening [m/s] for :func:`kalman.reacquire`."""
         c, st = self.config, self.store
         empty = np.empty(0, dtype=np.int64)
         dormant = np.flatnonzero(st.status == TrackStatus.DORMANT)
         cols = np.flatnonzero(free)
         if not c.reid_enabled or dormant.shape[0] == 0 or cols.shape[0] == 0:
-            return empty, empty
+            return empty, empty, np.empty(0)
         horizon = np.minimum(stamp - st.last_update_s[dormant], c.dormant_prediction_cap_s)
         xd, pd = kalman.predict(
             st.x_post[dormant], st.p_post[dormant], horizon, c.process_accel_std_mps2
@@ -261,13 +281,16 @@ class Tracker:
             c.gate_euclidean_m * factor,
             c.gate_mahalanobis_chi2 * factor * factor,
         )
+        mean_size = st.mean_size(dormant)
         sized = size_compatible(
-            st.mean_size(dormant),
-            det_wl[cols],
-            c.dormant_size_tolerance_frac,
-            c.reid_size_floor_m,
+            mean_size, det_wl[cols], c.dormant_size_tolerance_frac, c.reid_size_floor_m
         )
-        rows, picked = assign(np.where(sized, cost, np.inf))
+        reach = reid_reach_m(horizon, mean_size.max(axis=1), c)
+        deviation = np.hypot(
+            det_xy[cols, 0][None, :] - xd[:, 0, None], det_xy[cols, 1][None, :] - xd[:, 1, None]
+        )
+        reachable = deviation <= reach[:, None]
+        rows, picked = assign(np.where(sized & reachable, cost, np.inf))
         room = max(c.max_tracks - int(np.count_nonzero(st.live)), 0)
         if rows.shape[0] > room:
             # A re-identified track is live again: never more live tracks than max_tracks.
@@ -275,7 +298,7 @@ class Tracker:
             rows, picked = rows[np.sort(best)], picked[np.sort(best)]
         slots = dormant[rows]
         st.x[slots], st.p[slots] = xd[rows], pd[rows]
-        return slots, cols[picked]
+        return slots, cols[picked], c.reid_max_accel_mps2 * horizon[rows]
 
     def snapshot(self) -> Tracks:
         """The current tracks (live and dormant) ordered by ID, with their features."""

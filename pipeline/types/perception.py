@@ -107,6 +107,8 @@ class Predictions:
     of a disc about the reference point that holds the object's body, so the region grown by
     it holds the whole object. ``speed_mps`` is the speed bound the region was built with and
     ``heading_rad`` the direction it was built around (NaN when none: a disc).
+    ``person_compatible``: nothing seen of the track excludes a person (its box is not larger
+    than a person can be; :func:`pipeline.predict.person_compatible`, SR-CLS-8).
     ``safety.geometry.envelopes`` turns rows into polygons.
     """
 
@@ -117,6 +119,7 @@ class Predictions:
     class_index: IntArray
     confidence: FloatArray
     near_reversal: BoolArray
+    person_compatible: BoolArray
     speed_mps: FloatArray
     heading_rad: FloatArray
     body_radius_m: FloatArray
@@ -129,13 +132,14 @@ class Predictions:
             np.float64,
         )
         freeze_fields(self, ("track_id", "mode", "class_index"), np.int64)
-        freeze_fields(self, ("near_reversal",), np.bool_)
+        freeze_fields(self, ("near_reversal", "person_compatible"), np.bool_)
         m = self.track_id.shape[0]
         for name in (
             "mode",
             "class_index",
             "confidence",
             "near_reversal",
+            "person_compatible",
             "speed_mps",
             "heading_rad",
             "body_radius_m",

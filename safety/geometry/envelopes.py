@@ -16,7 +16,9 @@ Per envelope the governor also needs how fast the object may close in
 * near reversal (modes STOP and REVERSE): the reversing forklift's speed;
 * a person: the ISO 13855 walking speed (``stopping.person_speed_mps``);
 * stationary and static classes: the static speed (0 by default);
-* other moving classes: the larger of the static speed and the prediction's speed bound.
+* other moving classes: the larger of the static speed and the prediction's speed bound;
+* then, whatever the class: at least the person speed where the track may be a person
+  (``Predictions.person_compatible``; :func:`safety.model.stopping.person_floor_mps`, SR-CLS-8).
 
 When the classifier cannot run at all, :func:`pipeline.classify.model.unscored` gives every track
 class -1, and every track then gets this fallback.
@@ -33,7 +35,7 @@ from pipeline.constructive import disc_points, minkowski
 from pipeline.frames import checked_pose, inverse, is_identity
 from pipeline.types import ConvexPolygons, Envelopes, FloatArray, PredictionMode, Predictions
 from safety.geometry.polygons import convex_polygons, transform_polygons
-from safety.model.stopping import StoppingParams, tier_value
+from safety.model.stopping import StoppingParams, person_floor_mps, tier_value
 
 __all__ = ["ROUNDING_M", "EnvelopeBuilder", "body_polygons", "grown_polygons"]
 
@@ -104,7 +106,11 @@ class EnvelopeBuilder:
         closing[(predictions.class_index == person) & ~still] = float(p.person_speed_mps)
         closing[predictions.near_reversal] = float(p.forklift_speed_mps)
         closing[mode == int(PredictionMode.UNKNOWN)] = float(p.worst_closing_speed_mps)
-        return closing
+        floored: FloatArray = np.asarray(
+            person_floor_mps(closing, predictions.person_compatible, float(p.person_speed_mps)),
+            dtype=np.float64,
+        )
+        return floored
 
     def build(
         self,

@@ -42,6 +42,10 @@ arithmetic; z3 proves the bound for every velocity in the cone, and that it neve
 ``max(static, s)``, the closing speed without direction). A forklift driving away along the
 path closes at 0.
 
+Person floor (SR-CLS-8): an obstacle that may be a person, whatever its class says, closes in
+at least at the person speed: ``max(V, K)`` where it is person-compatible, ``V`` elsewhere
+(:func:`person_floor_mps`; z3 proves the floor, properties/test_person_floor.py).
+
 Every function here uses only ``+ - * /``, comparisons and the helpers of
 :mod:`safety.model.readings`, so it evaluates with floats, Fractions, numpy arrays and z3 terms.
 """
@@ -64,6 +68,7 @@ __all__ = [
     "directed_closing_mps",
     "iso13855_distance_m",
     "keymaera_separation_m",
+    "person_floor_mps",
     "robot_stopping_distance_m",
     "safe_speed_mps",
     "separation_m",
@@ -178,6 +183,12 @@ def directed_closing_mps(
     edge = cos_offset * cos_half + sin_offset_abs * sin_half
     along = select(inside, 1 + 0 * edge, edge)
     return maximum(static_mps, speed_mps * maximum(along, 0 * along))
+
+
+def person_floor_mps(closing_mps: Real, person_compatible: Any, person_mps: Real) -> Real:
+    """The closing speed [m/s] an obstacle is given: at least ``person_mps`` where it may be a
+    person (``person_compatible``), ``closing_mps`` (its class's) unchanged elsewhere (SR-CLS-8)."""
+    return select(person_compatible, maximum(closing_mps, person_mps), closing_mps)
 
 
 def tier_value(

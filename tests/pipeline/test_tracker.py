@@ -5,12 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.config import default_config, overridden
+from pipeline.config import TrackSection, default_config, overridden
 from pipeline.track import kalman
 from pipeline.track.associate import assign, cascade, gated_costs
 from pipeline.track.metrics import PositionsFrame, evaluate, gospa
 from pipeline.track.tracker import Detections, Tracker, TrackerError
 from pipeline.types import TrackStatus
+
+
+def _reid_on() -> TrackSection:
+    return overridden(default_config(), {"track": {"reid_enabled": True}}).track
 
 
 def _det(t: float, xy: list[tuple[float, float]], size: float = 0.5) -> Detections:
@@ -50,7 +54,7 @@ def test_constant_velocity_is_learned() -> None:
     "SR-TRK-4", code=["pipeline/track/lifecycle.py", "pipeline/track/tracker.py"]
 )
 def test_lifecycle_through_dormancy_and_reidentification() -> None:
-    tr = Tracker(default_config().track)
+    tr = Tracker(_reid_on())
     t = 0.0
     for _ in range(4):
         tracks = tr.step(_det(t, [(2.0 + t, 1.0)]))
@@ -86,7 +90,7 @@ def test_without_reidentification_the_object_gets_a_new_id() -> None:
 
 
 def test_a_different_size_is_not_reidentified() -> None:
-    tr = Tracker(default_config().track)
+    tr = Tracker(_reid_on())
     t = 0.0
     for _ in range(4):
         tr.step(_det(t, [(2.0, 1.0)], size=0.3))

@@ -20,11 +20,16 @@ from safety.model.governor import Governor
 
 
 def _envelopes(
-    name: str | None, conf: float, xy: tuple[float, float] = (3.0, 0.0), near: bool = False
+    name: str | None,
+    conf: float,
+    xy: tuple[float, float] = (3.0, 0.0),
+    near: bool = False,
+    box_m: tuple[float, float] = (1.2, 2.5),
 ) -> tuple[SafecaseConfig, Predictions, Envelopes]:
+    """One track's envelopes; its box (width, length) is larger than a person unless given."""
     config = default_config()
     hist = np.stack([np.linspace(xy[0] + 1.5, xy[0], 15), np.full(15, xy[1])], axis=1)
-    tracks = tracks_of(np.array(xy), np.array([-0.2, 0.0]), 0.01, 0.02, 0.5, 1.0, hist)
+    tracks = tracks_of(np.array(xy), np.array([-0.2, 0.0]), 0.01, 0.02, *box_m, hist)
     pred = predict(
         tracks,
         features_for(tracks, near),
@@ -53,6 +58,17 @@ def test_margin_tier_and_closing_speed(
     assert env.margin_m.tolist() == [margin] * env.n
     assert env.tier.tolist() == [tier] * env.n
     assert env.closing_speed_mps.tolist() == pytest.approx([closing] * env.n)
+
+
+@pytest.mark.parametrize(
+    ("name", "near"),
+    [("static", False), ("cart", False), ("forklift_near_reversal", True), ("vehicle", False)],
+)
+def test_a_person_sized_track_closes_at_least_at_the_person_speed(name: str, near: bool) -> None:
+    """SR-CLS-8: whatever its class, a track whose box a person could fill (here 0.3 x 0.5 m)."""
+    _, pred, env = _envelopes(name, 0.95, near=near, box_m=(0.3, 0.5))
+    assert pred.person_compatible.all()
+    assert env.closing_speed_mps.tolist() == pytest.approx([1.6] * env.n)
 
 
 def test_moving_class_closes_at_its_speed_bound() -> None:
