@@ -9,7 +9,8 @@ cannot drift apart. The data path reads top to bottom in :meth:`Perception.perce
     scan filter -> clusterer -> shape estimator -> tracker (with its associator)
     -> feature extractor -> classifier -> fusion -> predictor
 
-Frames: the scan filter gives points in the robot frame; when the frame carries an odometry
+Frames: the scan filter gives points in the robot frame (with a second scanner configured, its
+fresh points merged in: :mod:`pipeline.scanners`); when the frame carries an odometry
 pose the clusters are moved into the tracking frame (:func:`pipeline.track.tracker.
 detections_in_frame`) and tracked there, else tracking happens in the robot frame. Thermal
 detections move with the same pose; radar Doppler needs the robot frame (no ego-motion
@@ -51,6 +52,7 @@ from pipeline.roles import (
     TrackClassifier,
     TrackerRole,
 )
+from pipeline.scanners import SecondScanner, SecondScanReport
 from pipeline.shape.box import BoxShapes
 from pipeline.shape.lshape import LShapeShapes
 from pipeline.track.heading import TrackHeadings
@@ -148,6 +150,7 @@ class Tracked:
     counts: CycleCounts | None
     features: TrackFeatures
     headings: TrackHeadings | None = None
+    second: SecondScanReport | None = None
 
 
 @dataclass(frozen=True)
@@ -213,6 +216,7 @@ class Perception:
     classifier: TrackClassifier | None = None
     fusion: Fusion | None = None
     predictor: Predictor | None = None
+    second: SecondScanner | None = None
 
     @classmethod
     def from_config(
@@ -230,6 +234,7 @@ class Perception:
         ``classifier`` defaults to the configured model (hash-checked); fusion needs the
         freshness ``guard``, a safety formula (:func:`safety.model.freshness.is_fresh`).
         ``tracking_only`` leaves out classification, fusion and prediction (and needs no guard).
+        A second scanner (``scan2.enabled``) is merged only by a chain given the ``guard``.
         """
         chain = cls(
             scan_filter=RangeFilter(config.scan),
@@ -255,23 +260,35 @@ class Perception:
             classifier if classifier is not None else Classifier.from_config(config.classify),
             GatedFusion(config.fusion, guard),
             KinematicPredictor(config.predict, config.classify.medium_confidence_min),
+            (
+                SecondScanner(config.scan, config.scan2, config.monitors, guard)
+                if config.scan2.enabled
+                else None
+            ),
         )
 
     def reset(self) -> None:
         """Forget every track (a source that restarted, a clock that ran backwards)."""
         self.tracker.reset()
 
-    def track(self, frame: Frame, watch: Stopwatch | None = None) -> Tracked:
-        """Scan filter, clustering, shapes, tracking and features for one frame."""
+    def track(
+        self, frame: Frame, watch: Stopwatch | None = None, now_s: float | None = None
+    ) -> Tracked:
+        """Scan filter, clustering, shapes, tracking and features for one frame; a second
+        scan is judged fresh at ``now_s`` [s] (default: the frame's ``received_s``)."""
         watch = watch if watch is not None else Stopwatch()
         points = clusters = None
         counts = None
+        second = None
         try:
             with watch.stage("points"):
                 if frame.scan is None:
                     raise PerceptionError("no scan this cycle")
                 pose = IDENTITY if frame.pose is None else checked_pose(frame.pose)
                 points = self.scan_filter.points(frame.scan)
+                if self.second is not None:
+                    now = frame.received_s if now_s is None else now_s
+                    points, second = self.second.merge(frame, points, now)
             with watch.stage("cluster"):
                 partition = self.clusterer.partition(points)
             with watch.stage("shape"):
@@ -288,7 +305,7 @@ class Perception:
         except Exception as exc:  # the caller decides (the runtime: STOP naming the stage)
             raise StageError(watch.current, exc, Partial(points, clusters, counts)) from exc
         headings = getattr(self.tracker, "last_headings", None)
-        return Tracked(frame, pose, points, clusters, tracks, counts, features, headings)
+        return Tracked(frame, pose, points, clusters, tracks, counts, features, headings, second)
 
     def perceive(
         self,
@@ -303,7 +320,7 @@ class Perception:
         ``received_s``): detections are judged fresh against it. Raises :class:`StageError`.
         """
         watch = watch if watch is not None else Stopwatch()
-        tracked = self.track(frame, watch)
+        tracked = self.track(frame, watch, None if now_s is None else now_s())
         fused = None
         try:
             with watch.stage("classify"):

@@ -19,7 +19,7 @@ import numpy as np
 
 from pipeline.config import ScanSection
 from pipeline.errors import SafecaseError
-from pipeline.types import DropCounts, Scan, ScanPoints
+from pipeline.types import DropCounts, Pose, Scan, ScanPoints
 
 __all__ = ["RangeFilter", "ScanError", "scan_to_points"]
 
@@ -30,13 +30,17 @@ class ScanError(SafecaseError, ValueError):
     """A scan the pipeline refuses to process (too many beams for the configured cap)."""
 
 
-def scan_to_points(scan: Scan, config: ScanSection) -> ScanPoints:
+def scan_to_points(scan: Scan, config: ScanSection, mount: Pose | None = None) -> ScanPoints:
     """Sanitize ``scan`` and convert its valid beams to robot-frame points (SR-TRK-1).
 
     Ranges are in metres, angles in radians (sensor frame, counter-clockwise); the sensor pose
-    ``(mount_x_m, mount_y_m, mount_yaw_rad)`` maps them into the robot frame. Raises
-    :class:`ScanError` when ``scan.n_beams`` exceeds ``config.max_beams`` (SR-TIM-3).
+    ``mount`` (default the section's ``(mount_x_m, mount_y_m, mount_yaw_rad)``; a second
+    scanner's is its own) maps them into the robot frame. Raises :class:`ScanError` when
+    ``scan.n_beams`` exceeds ``config.max_beams`` (SR-TIM-3).
     """
+    mount_x, mount_y, mount_yaw = (
+        (config.mount_x_m, config.mount_y_m, config.mount_yaw_rad) if mount is None else mount
+    )
     if scan.n_beams > config.max_beams:
         raise ScanError(
             f"scan {scan.source or '<unnamed>'} seq {scan.seq}: {scan.n_beams} beams; "
@@ -62,12 +66,12 @@ def scan_to_points(scan: Scan, config: ScanSection) -> ScanPoints:
     index = np.flatnonzero(valid)
     range_m = ranges[index]
     # Bearing in the robot frame, wrapped to [-pi, pi) so that sorting gives the sweep order.
-    angle = np.mod(scan.angles_rad[index] + config.mount_yaw_rad + math.pi, _TWO_PI) - math.pi
+    angle = np.mod(scan.angles_rad[index] + mount_yaw + math.pi, _TWO_PI) - math.pi
     if angle.shape[0] > 1 and np.any(np.diff(angle) < 0.0):
         order = np.argsort(angle, kind="stable")
         angle, range_m, index = angle[order], range_m[order], index[order]
-    x_m = config.mount_x_m + range_m * np.cos(angle)
-    y_m = config.mount_y_m + range_m * np.sin(angle)
+    x_m = mount_x + range_m * np.cos(angle)
+    y_m = mount_y + range_m * np.sin(angle)
     return ScanPoints(
         stamp_s=scan.stamp_s,
         x_m=x_m,

@@ -19,6 +19,7 @@ from pipeline.types import (
     Frame,
     RadarDetections,
     Scan,
+    SecondScan,
     ThermalDetections,
 )
 from pipeline.types.acoustic import AcousticAlert
@@ -47,7 +48,8 @@ class CycleInput:
     given, is the cycle's duration on the decision clock in place of the measured one (a
     simulated clock: the closed loop then does not depend on this machine's speed and load; the
     measured times are still recorded). ``acoustic`` is the microphone array's newest alert,
-    which caps the speed while fresh (SR-ACU-3).
+    which caps the speed while fresh (SR-ACU-3). ``second`` is a second scanner's newest
+    revolution (SR-LID-1).
     """
 
     scan: Scan | None
@@ -61,6 +63,7 @@ class CycleInput:
     fault: Callable[[str], None] | None = None
     charge_s: float | None = None
     acoustic: AcousticAlert | None = None
+    second: SecondScan | None = None
 
     @classmethod
     def standing(
@@ -82,6 +85,7 @@ class CycleInput:
             radar=self.radar,
             health=self.driver,
             acoustic=self.acoustic,
+            second=self.second,
         )
 
 

@@ -30,8 +30,8 @@ from pipeline.config import SafecaseConfig
 from pipeline.frames import IDENTITY
 from pipeline.sources import ClosedLoopSource, FrameSource
 from pipeline.sources.sim.scenarios import make_simulation
+from pipeline.sources.sim.second_lidar import sim_source
 from pipeline.sources.sim.simulation import SimResult, Simulation
-from pipeline.sources.sim.source import SimSource
 from pipeline.types import FloatArray, Frame
 from safety.audit.log import AuditWriter, BackgroundAuditWriter
 from safety.foxglove import McapRecorder
@@ -82,6 +82,8 @@ class RunSummary:
     cpu_s: list[float] = field(default_factory=list)
     sim: SimResult | None = None
     audit_path: Path | None = None
+    second_scan: Counter[str] = field(default_factory=Counter)
+    """How often the second scanner was merged, stale, blocked, absent (SR-LID-2)."""
     sample_every: int = field(default=1, init=False)
     """Every how many cycles one is kept in the samples now."""
 
@@ -92,6 +94,9 @@ class RunSummary:
         self.actions[out.command.action.value] += 1
         for reason in out.command.reasons:
             self.reasons[_reason_kind(reason)] += 1
+        second = out.record.inputs.get("second_scan")
+        if second is not None:
+            self.second_scan[str(second["state"])] += 1
         if index % self.sample_every:
             return
         for stage, dt in out.wall_s.items():
@@ -148,6 +153,7 @@ def cycle_input(frame: Frame, config: SafecaseConfig, charge_s: float | None) ->
         driver=frame.health,
         charge_s=charge_s,
         acoustic=frame.acoustic,
+        second=frame.second,
     )
 
 
@@ -268,9 +274,10 @@ def run_simulation(
 ) -> RunSummary:
     """Run ``sim`` to its end with the runtime deciding after every scan (module docstring).
 
-    ``observe`` is :func:`run`'s.
+    ``observe`` is :func:`run`'s. With ``scan2.enabled`` the robot has its second scanner too
+    (:func:`~pipeline.sources.sim.second_lidar.sim_source`).
     """
-    source = SimSource(sim)
+    source = sim_source(config, sim)
     summary = RunSummary(sim.name, audit_path=audit_path)
     for out in run_audited(
         config,

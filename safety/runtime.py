@@ -76,6 +76,7 @@ from safety.model.decision import GovernorInputs, decide
 from safety.model.freshness import is_fresh
 from safety.model.governor import Governor
 from safety.model.monitors import MonitorVerdict, Observation
+from safety.model.second_scanner import second_scanner_verdict
 from safety.model.stopping import StoppingParams
 from safety.obstacles import (
     bodies_now,
@@ -150,6 +151,7 @@ class Runtime:
 
     def step(self, inp: CycleInput) -> CycleOutput:
         """Run one cycle (never raises; a failing stage gives STOP with its error)."""
+        config = self.config
         watch = Stopwatch(on_enter=inp.fault)
         stage_verdicts: list[MonitorVerdict] = []
         cpu0 = time.thread_time_ns()
@@ -217,9 +219,14 @@ class Runtime:
                 )
                 stage_verdicts.append(caution)
                 parts["acoustic"] = _alert_part(inp.acoustic, caution)
-            decision = decide(
-                self.governor, inputs, observation, self.config.monitors, stage_verdicts
-            )
+            second = None if perceived is None else perceived.tracked.second
+            if second is not None:
+                # A second scanner's points count only while fresh at decision time (SR-LID-2).
+                stage_verdicts.append(
+                    second_scanner_verdict(second, decision_now, config.scan2, config.monitors)
+                )
+                parts["second_scan"] = second
+            decision = decide(self.governor, inputs, observation, config.monitors, stage_verdicts)
         cpu = (time.thread_time_ns() - cpu0) * 1e-9
         self.previous_now_s = max(decision_now, self.previous_now_s or -math.inf)
         if inp.scan is not None:

@@ -28,11 +28,11 @@ from pipeline.sources.logs.stamps import StampRule
 from pipeline.sources.serial.source import EmulatedSource, SerialSource
 from pipeline.sources.sim.acoustic_scenarios import (
     ACOUSTIC_SCENARIOS,
-    HearingSimSource,
     hearing_simulation,
 )
 from pipeline.sources.sim.markings_source import MarkingsSource, markings_beside
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
+from pipeline.sources.sim.second_lidar import sim_source
 from pipeline.sources.sim.simulation import BOUNDED
 from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from safety.availability import Comparison
@@ -204,7 +204,7 @@ def run_command(
                 def ours(
                     rt: Runtime, observe: Callable[[CycleInput, CycleOutput], None]
                 ) -> RunSummary:
-                    source = SimSource(sim)
+                    source = sim_source(cfg, sim)
                     return _run_recorded(
                         cfg, source, target, None, None, measured_clock, mcap, rt, observe
                     )
@@ -216,7 +216,7 @@ def run_command(
                 summary = _run_recorded(cfg, aided, target, scans, None, measured_clock, mcap)
             else:
                 summary = _run_recorded(
-                    cfg, SimSource(sim), target, scans, None, measured_clock, mcap
+                    cfg, sim_source(cfg, sim), target, scans, None, measured_clock, mcap
                 )
         except (SafecaseError, ValueError, OSError) as exc:
             fail(str(exc))
@@ -376,11 +376,7 @@ def _run_recorded(
     """The simulator or a log, with a progress bar; the summary holds the simulator's verdict.
     ``runtime`` and ``observe`` are :func:`safety.run.run_audited`'s."""
     summary = RunSummary(source.name, audit_path=target)
-    total = (
-        source.n_frames
-        if isinstance(source, SimSource | MarkingsSource | HearingSimSource)
-        else None
-    )
+    total = source.n_frames if isinstance(source, SimSource | SimSourceBeside) else None
     with scan_progress(source.name) as bar:
         task = bar.add_task("run", total=total)
         outputs = _generator(
@@ -417,6 +413,9 @@ def _report(cfg: SafecaseConfig, summary: RunSummary, log: LogSource | None) -> 
     table.add_row(
         "reasons", ", ".join(f"{k} {v}" for k, v in summary.reasons.most_common(6)) or "-"
     )
+    if summary.second_scan:
+        states = ", ".join(f"{k} {v}" for k, v in summary.second_scan.most_common())
+        table.add_row("second scanner", states)
     if log is not None:
         skipped = ", ".join(f"{k} {v}" for k, v in log.skipped.items() if v) or "none"
         table.add_row("scans skipped", skipped)

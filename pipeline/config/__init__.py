@@ -30,6 +30,7 @@ from pipeline.config.sections_perception import (
     FusionSection,
     PredictSection,
     ScanSection,
+    SecondScanSection,
     TrackSection,
 )
 from pipeline.config.sections_safety import (
@@ -68,6 +69,7 @@ __all__ = [
     "RuntimeSection",
     "SafecaseConfig",
     "ScanSection",
+    "SecondScanSection",
     "SimSection",
     "StoppingSection",
     "ThermalSection",
@@ -86,6 +88,7 @@ class SafecaseConfig(Section):
 
     driver: DriverSection = DriverSection()
     scan: ScanSection = ScanSection()
+    scan2: SecondScanSection = SecondScanSection()
     cluster: ClusterSection = ClusterSection()
     track: TrackSection = TrackSection()
     classify: ClassifySection = ClassifySection()

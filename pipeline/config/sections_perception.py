@@ -68,6 +68,24 @@ class ScanSection(Section):
         return self
 
 
+class SecondScanSection(Section):
+    """A second scanner (rear, or a corner) merged with the first per cycle (SR-LID-1..4).
+
+    Its points are moved into the robot frame by its ``mount_*`` pose, range-filtered with the
+    ``scan`` section's limits, and merged with the first scanner's only while its scan is
+    fresh by the first scanner's bound (``monitors.scan_max_age_s``, ``monitors.clock_skew_s``:
+    the stopping proof's latency); a stale or missing second scan is left out, recorded in the
+    audit log, and ``on_stale`` says what the robot does meanwhile: ``report`` (nothing more),
+    ``slow`` (``monitors.degraded_speed_mps``) or ``stop``.
+    """
+
+    enabled: bool = False
+    mount_x_m: float = Field(-0.45, ge=-10.0, le=10.0)
+    mount_y_m: float = Field(0.0, ge=-10.0, le=10.0)
+    mount_yaw_rad: float = Field(3.141592653589793, ge=-6.2832, le=6.2832)
+    on_stale: Literal["report", "slow", "stop"] = "slow"
+
+
 class ClusterSection(Section):
     """DBSCAN on scan points (source: eps 0.15 m, min_samples 3, 4..200 points)."""
 

@@ -14,9 +14,10 @@ tracker keeps each track's ends in its history and :mod:`pipeline.features` turn
 end speeds (docs/findings/classification.md).
 
 Only the adjacent beam counts (its ``beam_index`` differs by one, modulo the scan's beam
-count), so a dropped beam (no return, out of range) between the end and the next point leaves
-the end free. A cluster that straddles the seam of the sweep (bearing +/- pi, straight behind
-the scanner) is cut at its largest bearing gap instead of at the seam.
+count, and it comes from the same scanner), so a dropped beam (no return, out of range)
+between the end and the next point leaves the end free. A cluster that straddles the seam of
+the sweep (bearing +/- pi, straight behind the scanner) is cut at its largest bearing gap
+instead of at the seam.
 """
 
 from __future__ import annotations
@@ -56,8 +57,12 @@ def cluster_ends(
     ends = np.stack([first, last], axis=1)
     neighbour = np.stack([first - 1, last + 1], axis=1) % max(n, 1)
     n_beams = max(points.drops.n_beams, 1)
-    step = np.abs(points.beam_index[neighbour] - points.beam_index[ends]) % n_beams
-    adjacent = (step == 1) | (step == n_beams - 1)
+    beam = points.beam_index
+    step = np.abs(beam[neighbour] - beam[ends]) % n_beams
+    # A second scanner's beams are numbered from n_beams on (pipeline.scanners): a beam of one
+    # scanner is never adjacent to a beam of the other.
+    same_scanner = (beam[neighbour] >= n_beams) == (beam[ends] >= n_beams)
+    adjacent = same_scanner & ((step == 1) | (step == n_beams - 1))
     nearer = points.range_m[neighbour] < points.range_m[ends] - OCCLUSION_MARGIN_M
     occluded: BoolArray = adjacent & nearer
     return points.x_m[ends], points.y_m[ends], occluded

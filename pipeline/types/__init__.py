@@ -18,7 +18,7 @@ from pipeline.types.core import (
     frozen_array,
 )
 from pipeline.types.drivers import DriverHealth, DriverState
-from pipeline.types.frame import Frame, Pose
+from pipeline.types.frame import Frame, Pose, SecondScan
 from pipeline.types.fusion import FusedTracks, FusionCounts, RadarDetections, ThermalDetections
 from pipeline.types.geometry import ConvexPolygons, SweptPathReport
 from pipeline.types.perception import (
@@ -68,6 +68,7 @@ __all__ = [
     "RadarDetections",
     "Scan",
     "ScanPoints",
+    "SecondScan",
     "SoftAssociation",
     "SweptPathReport",
     "ThermalDetections",

@@ -15,6 +15,16 @@ Pose = tuple[float, float, float]
 
 
 @dataclass(frozen=True, slots=True)
+class SecondScan:
+    """The second scanner's newest revolution (SR-LID-1): ``scan`` in that scanner's own
+    frame (its mount is configured, ``scan2.mount_*``) and ``pose``, the robot's odometry pose
+    ``(x_m, y_m, yaw_rad)`` at that scan's stamp, None when the source has no odometry."""
+
+    scan: Scan
+    pose: Pose | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class Frame:
     """One cycle's input from a source (:mod:`pipeline.sources`), in the robot frame.
 
@@ -27,7 +37,8 @@ class Frame:
     the robot's planned route in the tracking frame and ``route_arc_m`` how far along it the
     robot is at ``received_s``; without it the path ahead is straight along the robot's heading.
     ``acoustic`` is the newest alert of the microphone array (a bearing, never a position), which
-    the runtime reads as a reason for caution (SR-ACU-3), or None.
+    the runtime reads as a reason for caution (SR-ACU-3), or None. ``second`` is a second
+    scanner's newest revolution, merged with ``scan`` while it is fresh (SR-LID-1), or None.
     """
 
     scan: Scan | None
@@ -39,6 +50,7 @@ class Frame:
     route_m: FloatArray | None = None
     route_arc_m: float = 0.0
     acoustic: AcousticAlert | None = None
+    second: SecondScan | None = None
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.received_s):

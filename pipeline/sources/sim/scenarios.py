@@ -245,6 +245,12 @@ def _random_encounter(rng: np.random.Generator, duration: float) -> ScenarioSpec
     return ScenarioSpec(world, route)
 
 
+def _tug_overtaking(rng: np.random.Generator, duration: float) -> ScenarioSpec:
+    from pipeline.sources.sim.overtaking import tug_overtaking
+
+    return ScenarioSpec(*tug_overtaking(rng, duration))
+
+
 SCENARIOS: dict[str, ScenarioInfo] = {
     info.name: info
     for info in (
@@ -290,6 +296,13 @@ SCENARIOS: dict[str, ScenarioInfo] = {
             "ramp agent.",
             "apron",
             _dolly_train_turn,
+        ),
+        ScenarioInfo(
+            "tug_overtaking",
+            "Apron: a baggage tug overtakes the robot from behind and turns across its "
+            "lane 3.5-5 m ahead (what a rear scanner is for).",
+            "apron",
+            _tug_overtaking,
         ),
         ScenarioInfo(
             "random_encounter",
