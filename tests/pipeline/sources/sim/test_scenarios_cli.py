@@ -23,6 +23,7 @@ def test_the_issue_s_scenarios_and_models_are_all_there() -> None:
         "occlusion_behind_cart",
         "forklift_pass_by",
         "dolly_train_turn",
+        "tug_overtaking",
         "random_encounter",
     }
     assert wanted == set(SCENARIOS)
