@@ -34,7 +34,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
 from pipeline.config import AcousticSection
 from pipeline.errors import SafecaseError
@@ -78,6 +77,9 @@ class Spectrogram:
 
 def spectrogram(clip: AudioClip, section: AcousticSection) -> Spectrogram:
     """The clip's STFT and band power (module docstring, step 1)."""
+    # Imported here: scipy.signal costs half a second, which every `safecase` command would pay.
+    import scipy.signal
+
     freqs, _, z = scipy.signal.stft(
         clip.samples,
         fs=clip.sample_rate_hz,
