@@ -13,8 +13,13 @@ Frames: the scan filter gives points in the robot frame (with a second scanner c
 fresh points merged in: :mod:`pipeline.scanners`); when the frame carries an odometry
 pose the clusters are moved into the tracking frame (:func:`pipeline.track.tracker.
 detections_in_frame`) and tracked there, else tracking happens in the robot frame. Thermal
-detections move with the same pose; radar Doppler needs the robot frame (no ego-motion
-compensation yet), so a frame with radar and a moving pose is refused.
+detections move with the same pose. Radar returns go through the radar's front-end
+(:class:`pipeline.sensors.radar.RadarFrontEnd`, SR-FUS-7, SR-FUS-9): its filters (no reflector
+map), its ego-motion compensation with the frame's pose and twist, and the position weight of the
+scan's LiDAR degradation index (its DBSCAN noise points over its valid points); fusion then
+gates them with the tracker's own gates (:class:`pipeline.sensors.radar.RadarGate`). A moving
+robot without a twist cannot compensate the Doppler: the frame is refused (the runtime STOPs
+naming the fusion stage).
 
 Each stage is timed by a :class:`Stopwatch`; a stage that raises ends the call with
 :class:`StageError`, which names the stage and carries what the earlier stages produced.
@@ -53,6 +58,8 @@ from pipeline.roles import (
     TrackerRole,
 )
 from pipeline.scanners import SecondScanner, SecondScanReport
+from pipeline.sensors.radar import RadarCounts, RadarFrontEnd, RadarGate, degradation_index
+from pipeline.sensors.radar_counts import RadarFusionCounts
 from pipeline.shape.box import BoxShapes
 from pipeline.shape.lshape import LShapeShapes
 from pipeline.track.heading import TrackHeadings
@@ -65,6 +72,7 @@ from pipeline.types import (
     Frame,
     FusedTracks,
     Predictions,
+    RadarDetections,
     ScanPoints,
     TrackFeatures,
     Tracks,
@@ -85,7 +93,8 @@ STAGES = ("points", "cluster", "shape", "track", "features", "classify", "fusion
 
 
 class PerceptionError(SafecaseError, ValueError):
-    """A frame the chain cannot process (no scan, radar with a moving pose, no classifier)."""
+    """A frame the chain cannot process (no scan, radar from a moving robot without its twist,
+    no classifier)."""
 
 
 class StageError(SafecaseError):
@@ -217,6 +226,7 @@ class Perception:
     fusion: Fusion | None = None
     predictor: Predictor | None = None
     second: SecondScanner | None = None
+    radar: RadarFrontEnd | None = None
 
     @classmethod
     def from_config(
@@ -235,6 +245,8 @@ class Perception:
         freshness ``guard``, a safety formula (:func:`safety.model.freshness.is_fresh`).
         ``tracking_only`` leaves out classification, fusion and prediction (and needs no guard).
         A second scanner (``scan2.enabled``) is merged only by a chain given the ``guard``.
+        A chain with fusion runs a frame's radar through the radar's front-end and gates it with
+        the radar gate (the ``radar`` section's noise, the ``track`` section's gates).
         """
         chain = cls(
             scan_filter=RangeFilter(config.scan),
@@ -258,13 +270,14 @@ class Perception:
             chain.tracker,
             chain.features,
             classifier if classifier is not None else Classifier.from_config(config.classify),
-            GatedFusion(config.fusion, guard),
+            GatedFusion(config.fusion, guard, RadarGate.from_config(config)),
             KinematicPredictor(config.predict, config.classify.medium_confidence_min),
             (
                 SecondScanner(config.scan, config.scan2, config.monitors, guard)
                 if config.scan2.enabled
                 else None
             ),
+            RadarFrontEnd(config),
         )
 
     def reset(self) -> None:
@@ -343,16 +356,37 @@ class Perception:
         classification: Classification,
         now_s: Callable[[], float] | None,
     ) -> FusedTracks:
-        """Thermal (moved into the tracking frame) and radar fused at decision time."""
+        """Thermal (moved into the tracking frame) and radar (through its front-end) fused at
+        decision time; with radar, the counts are :class:`RadarFusionCounts`."""
         frame, pose = tracked.frame, tracked.pose
-        if frame.radar is not None and not is_identity(pose):
-            raise PerceptionError(
-                "radar fusion needs the tracking frame to be the robot frame (no ego-motion "
-                "compensation of Doppler yet); got a moving robot_pose"
-            )
         now = frame.received_s if now_s is None else now_s()
         thermal = None if frame.thermal is None else thermal_in_frame(frame.thermal, pose)
         assert self.fusion is not None  # perceive checked
-        return self.fusion.fuse(
-            now, tracked.tracks, classification.confidence, thermal, frame.radar
+        if frame.radar is None:
+            return self.fusion.fuse(now, tracked.tracks, classification.confidence, thermal, None)
+        radar, front, index = self._radar(tracked)
+        fused = self.fusion.fuse(now, tracked.tracks, classification.confidence, thermal, radar)
+        weight = radar.position_weight
+        given = 0.0 if weight is None or weight.shape[0] == 0 else float(weight[0])
+        return replace(fused, counts=RadarFusionCounts.of(fused.counts, front, index, given))
+
+    def _radar(self, tracked: Tracked) -> tuple[RadarDetections, RadarCounts, float]:
+        """The frame's radar returns through the front-end (module docstring): the kept ones in
+        the tracking frame, what the filters did and the LiDAR degradation index. Raises
+        :class:`PerceptionError` for a chain without the front-end, or a moving robot without a
+        twist."""
+        frame, pose = tracked.frame, tracked.pose
+        assert frame.radar is not None  # the caller checked
+        if self.radar is None:
+            raise PerceptionError("radar returns need the radar front-end (Perception.radar)")
+        kept, counts = self.radar.filter(frame.radar, pose, None)
+        index = degradation_index(
+            tracked.points.n,
+            tracked.clusters.counts.n_noise_points,
+            self.radar.section.degraded_noise_fraction,
         )
+        try:
+            framed = self.radar.in_tracking_frame(frame.radar, kept, pose, frame.twist, index)
+        except ValueError as exc:  # no twist on a moving robot: refused, never guessed
+            raise PerceptionError(str(exc)) from exc
+        return framed, counts, index

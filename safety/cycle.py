@@ -23,6 +23,7 @@ from pipeline.types import (
     ThermalDetections,
 )
 from pipeline.types.acoustic import AcousticAlert
+from pipeline.types.sensors import Twist
 from safety.audit.log import CycleRecord
 from safety.geometry.costmap import Costmap
 from safety.geometry.path import PathAhead, PathDistances
@@ -49,7 +50,8 @@ class CycleInput:
     simulated clock: the closed loop then does not depend on this machine's speed and load; the
     measured times are still recorded). ``acoustic`` is the microphone array's newest alert,
     which caps the speed while fresh (SR-ACU-3). ``second`` is a second scanner's newest
-    revolution (SR-LID-1).
+    revolution (SR-LID-1). ``twist`` is the robot's velocity at the scan's stamp (odometry,
+    robot frame), needed to use radar returns while the robot moves (SR-FUS-9).
     """
 
     scan: Scan | None
@@ -64,6 +66,7 @@ class CycleInput:
     charge_s: float | None = None
     acoustic: AcousticAlert | None = None
     second: SecondScan | None = None
+    twist: Twist | None = None
 
     @classmethod
     def standing(
@@ -86,6 +89,7 @@ class CycleInput:
             health=self.driver,
             acoustic=self.acoustic,
             second=self.second,
+            twist=self.twist,
         )
 
 

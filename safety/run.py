@@ -29,8 +29,8 @@ import numpy as np
 from pipeline.config import SafecaseConfig
 from pipeline.frames import IDENTITY
 from pipeline.sources import ClosedLoopSource, FrameSource
+from pipeline.sources.sim.rig import sim_source
 from pipeline.sources.sim.scenarios import make_simulation
-from pipeline.sources.sim.second_lidar import sim_source
 from pipeline.sources.sim.simulation import SimResult, Simulation
 from pipeline.types import FloatArray, Frame
 from safety.audit.log import AuditWriter, BackgroundAuditWriter
@@ -154,6 +154,7 @@ def cycle_input(frame: Frame, config: SafecaseConfig, charge_s: float | None) ->
         charge_s=charge_s,
         acoustic=frame.acoustic,
         second=frame.second,
+        twist=frame.twist,
     )
 
 

@@ -31,8 +31,8 @@ from pipeline.sources.sim.acoustic_scenarios import (
     hearing_simulation,
 )
 from pipeline.sources.sim.markings_source import MarkingsSource, markings_beside
+from pipeline.sources.sim.rig import sim_source
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
-from pipeline.sources.sim.second_lidar import sim_source
 from pipeline.sources.sim.simulation import BOUNDED
 from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from safety.availability import Comparison

@@ -169,11 +169,14 @@ def _toml_value(value: Any) -> str:
         return repr(value)
     if isinstance(value, str):
         return json.dumps(value)  # a JSON string is a valid TOML basic string
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     raise TypeError(f"to_toml: cannot write {type(value).__name__} value {value!r}")
 
 
 def to_toml(data: Mapping[str, Mapping[str, Any]]) -> str:
-    """Write section tables of scalars as TOML (what ``load_config`` reads back)."""
+    """Write section tables of scalars and lists of scalars as TOML (what ``load_config`` reads
+    back)."""
     lines: list[str] = []
     for section, values in data.items():
         lines.append(f"[{section}]")

@@ -198,7 +198,9 @@ class RuntimeSection(Section):
     ``planner_check`` and ``costmap`` run the swept-path check of the
     candidate grid and the costmap every cycle (recorded, for a planner; the candidate grid costs
     10-30 ms here, so it is off by default). In closed-loop simulation every cycle takes
-    ``sim_cycle_s`` on the simulated clock.
+    ``sim_cycle_s`` on the simulated clock, and ``sim_sensors`` names the simulated sensors run
+    beside the LiDAR (``"thermal"``: the LWIR camera and its detector, ``"radar"``: the radar;
+    :mod:`pipeline.sources.sim.sensors_source`, SR-FUS-9); none by default.
     """
 
     path_lookahead_m: float = Field(6.0, gt=0.0, le=100.0)
@@ -208,6 +210,8 @@ class RuntimeSection(Section):
     planner_check: bool = False
     costmap: bool = True
     sim_cycle_s: float = Field(0.05, ge=0.0, le=1.0)
+    # Lax for this field alone: TOML gives a list, the section keeps a tuple (frozen, hashable).
+    sim_sensors: tuple[Literal["thermal", "radar"], ...] = Field((), strict=False)
 
     @model_validator(mode="after")
     def _bounded_path(self) -> Self:

@@ -10,6 +10,7 @@ from pipeline.types.acoustic import AcousticAlert
 from pipeline.types.core import FloatArray, Scan, frozen_array
 from pipeline.types.drivers import DriverHealth
 from pipeline.types.fusion import RadarDetections, ThermalDetections
+from pipeline.types.sensors import Twist
 
 Pose = tuple[float, float, float]
 
@@ -39,6 +40,9 @@ class Frame:
     ``acoustic`` is the newest alert of the microphone array (a bearing, never a position), which
     the runtime reads as a reason for caution (SR-ACU-3), or None. ``second`` is a second
     scanner's newest revolution, merged with ``scan`` while it is fresh (SR-LID-1), or None.
+    ``twist`` is the robot's velocity from odometry at the scan's stamp (robot frame), which
+    the radar's front-end needs to take the robot's own motion out of the Doppler (SR-FUS-9);
+    None when the source has no odometry velocity.
     """
 
     scan: Scan | None
@@ -51,6 +55,7 @@ class Frame:
     route_arc_m: float = 0.0
     acoustic: AcousticAlert | None = None
     second: SecondScan | None = None
+    twist: Twist | None = None
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.received_s):

@@ -11,8 +11,9 @@ import pytest
 
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig, default_config, overridden
+from pipeline.sources.sim.rig import sim_source
 from pipeline.sources.sim.scenarios import make_simulation
-from pipeline.sources.sim.second_lidar import SecondLidarSource, sim_source
+from pipeline.sources.sim.second_lidar import SecondLidarSource
 from pipeline.types import Action, Scan, SecondScan
 from properties.second_lidar_study import front_rear_config
 from safety.audit.replay import replay

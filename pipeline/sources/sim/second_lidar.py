@@ -20,14 +20,11 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from pipeline.config import SafecaseConfig
 from pipeline.sources.sim.lidar import Lidar, LidarSpec
-from pipeline.sources.sim.scenarios import lidar_spec_from_config
-from pipeline.sources.sim.simulation import Simulation
 from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from pipeline.types import FloatArray, Frame, Pose, SecondScan
 
-__all__ = ["SecondLidarSource", "sim_source"]
+__all__ = ["SecondLidarSource"]
 
 
 class SecondLidarSource(SimSourceBeside):
@@ -79,18 +76,3 @@ class SecondLidarSource(SimSourceBeside):
                 newest = SecondScan(scan, frame.pose)
                 self.delivered += 1
             yield dataclasses.replace(frame, second=newest)
-
-
-def sim_source(
-    config: SafecaseConfig, sim: Simulation, *, outages: Sequence[tuple[float, float]] = ()
-) -> SimSource | SecondLidarSource:
-    """``sim`` in closed loop as the configuration's robot sees it: with a second scanner
-    (:class:`SecondLidarSource`, the ``sim`` section's scanner model at ``scan2.mount_*``, noise
-    seeded by the run's seed alone) when ``scan2.enabled``, else the plain source."""
-    inner = SimSource(sim)
-    second = config.scan2
-    if not second.enabled:
-        return inner
-    mount = (second.mount_x_m, second.mount_y_m, second.mount_yaw_rad)
-    rng = np.random.default_rng([sim.seed, 251])
-    return SecondLidarSource(inner, lidar_spec_from_config(config), mount, rng, outages=outages)
