@@ -8,6 +8,13 @@ command mix and the per-cycle thread CPU time. Everything but the CPU times is a
 the encounter and the configuration alone, so the same seed gives the same :meth:`outcome` on
 any worker.
 
+Availability (SR-AVL-1, SR-RUN-8): a shadow oracle (:class:`safety.availability.Shadow`, the
+runtime fed the simulator's ground truth) decides on every one of our frames without driving the
+robot, so every row counts its *nuisance STOP* cycles (we STOP, the oracle in the same situation
+would PROCEED or SLOW) and what set our command in them. With ``oracle=True`` the oracle also
+drives a second simulation of the same seed, and the row holds our progress over the oracle's
+over the time both lasted (:meth:`safety.availability.Comparison.progress_share`).
+
 :class:`CampaignLog` is the campaign's JSON Lines file: a header line naming the configuration
 hash, then one row per finished encounter, flushed as each arrives, so an interrupted
 campaign resumes with the encounters it has not got (:meth:`CampaignLog.done`). An encounter
@@ -18,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import json
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,9 +38,9 @@ from pipeline.config import ClassifySection, SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
-from pipeline.sources.sim.simulation import BOUNDED
-from safety.run import contact_speeds, run_simulation
-from safety.runtime import Runtime
+from pipeline.sources.sim.simulation import BOUNDED, Simulation
+from safety.availability import Comparison, run_oracle, run_ours
+from safety.run import contact_speeds
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -103,6 +111,13 @@ class CampaignRow:
     ``closest_m``: the least ego-to-object separation of the run (``inf`` without objects);
     ``cpu_ms``: percentiles of the cycles' thread CPU time (not part of :meth:`outcome`);
     ``error``: set when the run raised (then the counts are zero).
+
+    Availability (module docstring): ``nuisance_cycles``, the cycles where we commanded STOP
+    and the shadow oracle would not have, and ``nuisance_causes``, what set our command in
+    them; ``progress_share``, our progress over the oracle's closed loop (None unless the
+    encounter ran with ``oracle=True``). A row without the shadow's figures (an encounter
+    that raised, or a line that lacks the keys) has ``nuisance_cycles`` None: it counts in the
+    contact bound, not in the availability figures.
     """
 
     encounter: Encounter
@@ -115,6 +130,16 @@ class CampaignRow:
     route_m: float
     cpu_ms: Mapping[str, float] = field(default_factory=dict)
     error: str | None = None
+    nuisance_cycles: int | None = None
+    nuisance_causes: Mapping[str, int] = field(default_factory=dict)
+    progress_share: float | None = None
+
+    @property
+    def nuisance_share(self) -> float | None:
+        """Nuisance STOP cycles over all cycles of the run (None without the shadow)."""
+        if self.nuisance_cycles is None:
+            return None
+        return self.nuisance_cycles / self.cycles if self.cycles else 0.0
 
     def outcome(self) -> dict[str, Any]:
         """The deterministic part of the row (everything but the CPU times)."""
@@ -137,11 +162,19 @@ class CampaignRow:
             "route_m": self.route_m,
             "cpu_ms": dict(self.cpu_ms),
             "error": self.error,
+            "nuisance_cycles": self.nuisance_cycles,
+            "nuisance_causes": dict(sorted(self.nuisance_causes.items())),
+            "progress_share": self.progress_share,
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> CampaignRow:
-        """A row read back from its line (``KeyError`` / ``TypeError`` when malformed)."""
+        """A row read back from its line (``KeyError`` / ``TypeError`` when malformed).
+
+        The availability keys may be missing (the row then has no shadow figures, class
+        docstring); every other key is required."""
+        nuisance = data.get("nuisance_cycles")
+        share = data.get("progress_share")
         return cls(
             encounter=Encounter(
                 str(data["scenario"]), int(data["seed"]), float(data["duration_s"])
@@ -155,12 +188,15 @@ class CampaignRow:
             route_m=float(data["route_m"]),
             cpu_ms={str(k): float(v) for k, v in data["cpu_ms"].items()},
             error=None if data["error"] is None else str(data["error"]),
+            nuisance_cycles=None if nuisance is None else int(nuisance),
+            nuisance_causes={str(k): int(v) for k, v in data.get("nuisance_causes", {}).items()},
+            progress_share=None if share is None else float(share),
         )
 
 
 def failed_row(encounter: Encounter, error: str) -> CampaignRow:
     """The row of an encounter that raised (or whose workers kept dying): counted, not lost."""
-    return CampaignRow(encounter, 0, {}, 0, (), float("inf"), 0.0, 0.0, {}, error)
+    return CampaignRow(encounter, 0, {}, 0, (), float("inf"), 0.0, 0.0, {}, error=error)
 
 
 @functools.lru_cache(maxsize=2)
@@ -169,22 +205,38 @@ def _classifier(section: ClassifySection) -> Classifier:
     return Classifier.from_config(section)
 
 
-def run_encounter(config: SafecaseConfig, encounter: Encounter) -> CampaignRow:
-    """Run ``encounter`` in closed loop (module docstring) and summarise it.
+def run_encounter(
+    config: SafecaseConfig, encounter: Encounter, *, oracle: bool = False
+) -> CampaignRow:
+    """Run ``encounter`` in closed loop with the shadow oracle beside it and summarise it;
+    with ``oracle`` also the oracle's own closed loop of the same seed (module docstring).
 
     Raises whatever the run raises; a campaign turns that into a :func:`failed_row`.
     """
     if encounter.scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {encounter.scenario!r}")
-    sim = make_simulation(
-        config, encounter.scenario, encounter.seed, encounter.duration_s, retention=BOUNDED
-    )
-    runtime = Runtime(config, classifier=_classifier(config.classify))
-    summary = run_simulation(config, sim, runtime=runtime)
+    model = _classifier(config.classify)
+    sim = _simulation(config, encounter)
+    summary, shadow = run_ours(config, sim, model)
     result = summary.sim
     assert result is not None  # run_simulation always sets it
     speeds = contact_speeds(result)
     cpu = np.asarray(summary.cpu_s, dtype=float) * 1e3
+    flags = shadow.nuisance()
+    causes = Counter(row[5] for row, flag in zip(shadow.rows, flags, strict=True) if flag)
+    share = None
+    if oracle:
+        best = run_oracle(config, _simulation(config, encounter), model)
+        pair = Comparison(
+            encounter.scenario,
+            encounter.seed,
+            summary,
+            best,
+            summary,  # no baseline runs in a campaign; nothing here reads its slot
+            shadow,
+            sim.lidar.spec.scan_period_s,
+        )
+        share = pair.progress_share()
     return CampaignRow(
         encounter=encounter,
         cycles=summary.cycles,
@@ -203,6 +255,16 @@ def run_encounter(config: SafecaseConfig, encounter: Encounter) -> CampaignRow:
             if cpu.size
             else {}
         ),
+        nuisance_cycles=sum(flags),
+        nuisance_causes=dict(causes),
+        progress_share=share,
+    )
+
+
+def _simulation(config: SafecaseConfig, encounter: Encounter) -> Simulation:
+    """A fresh simulation of ``encounter``, keeping a bounded result (a campaign keeps rows)."""
+    return make_simulation(
+        config, encounter.scenario, encounter.seed, encounter.duration_s, retention=BOUNDED
     )
 
 
@@ -296,14 +358,17 @@ def run_campaign(
     plan: Sequence[Encounter],
     log: CampaignLog,
     on_row: Callable[[CampaignRow], None] | None = None,
+    *,
+    oracle: bool = False,
 ) -> list[CampaignRow]:
-    """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster, appending
-    each row to ``log`` as it arrives (a failure as a :func:`failed_row`); all of the log's
-    rows, resumed ones first."""
+    """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster (with the
+    oracle's closed loop too when ``oracle``: :func:`run_encounter`), appending each row to
+    ``log`` as it arrives (a failure as a :func:`failed_row`); all of the log's rows, resumed
+    ones first (kept as they were written, with or without the oracle)."""
     from pipeline.distributed import TaskFailed, as_done  # Dask loads only for a campaign
 
     todo = pending(plan, log)
-    task = functools.partial(run_encounter, config)
+    task = functools.partial(run_encounter, config, oracle=oracle)
     for done in as_done(client, task, todo):
         encounter = todo[done.index]
         result = done.result

@@ -9,6 +9,12 @@ is the largest ``p`` the campaign does not exclude. With no violation in ``n`` r
 one-sided 95 % bound is ``1 - 0.05 ** (1 / n)``: about ``3 / n`` (the rule of three). A run that
 raised counts as a run with a violation: a crash of the safety function is not evidence of
 its safety (SR-RUN-8).
+
+Availability (SR-AVL-1, SR-RUN-8), over the rows that carry the shadow oracle's figures: the
+STOP share of cycles, the nuisance share of cycles (a STOP the oracle would not have commanded
+in the same situation, so never more than the STOP share), what set our command in those
+cycles, and the mean and least of our progress over the oracle's closed loop where the oracle
+ran (``safecase campaign --oracle``).
 """
 
 from __future__ import annotations
@@ -16,22 +22,29 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
-from scipy.stats import binomtest
 
 from safety.campaign import CampaignRow
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 __all__ = [
+    "AVAILABILITY_COLUMNS",
     "BOUND_COLUMNS",
+    "Availability",
     "RateBound",
+    "availability",
+    "availability_table",
     "bound_table",
     "by_scenario",
     "closest_figure",
     "command_mix",
     "contact_bound",
     "cpu_ms_summary",
+    "nuisance_causes",
     "upper_limit",
 ]
 
@@ -53,6 +66,10 @@ def upper_limit(violations: int, runs: int, one_sided: float) -> float:
     if runs < 1:
         return 1.0
     two_sided = 2.0 * one_sided - 1.0
+    # scipy.stats and matplotlib are imported where used: together they cost every `safecase`
+    # command a second and a half at start.
+    from scipy.stats import binomtest
+
     ci = binomtest(violations, runs).proportion_ci(confidence_level=two_sided, method="exact")
     return float(ci.high)
 
@@ -78,10 +95,15 @@ def contact_bound(rows: Sequence[CampaignRow]) -> RateBound:
 
 def by_scenario(rows: Sequence[CampaignRow]) -> dict[str, RateBound]:
     """:func:`contact_bound` of each scenario's rows, scenarios in first-seen order."""
+    return {name: contact_bound(group) for name, group in _groups(rows).items()}
+
+
+def _groups(rows: Sequence[CampaignRow]) -> dict[str, list[CampaignRow]]:
+    """Each scenario's rows, scenarios in first-seen order."""
     groups: dict[str, list[CampaignRow]] = {}
     for row in rows:
         groups.setdefault(row.encounter.scenario, []).append(row)
-    return {name: contact_bound(group) for name, group in groups.items()}
+    return groups
 
 
 BOUND_COLUMNS = ("scenario", "runs", "contacts while moving", "runs that raised", "95 %", "99 %")
@@ -128,6 +150,8 @@ def closest_figure(rows: Sequence[CampaignRow], title: str = "") -> Figure:
     """The distribution of each run's closest approach [m] (empirical CDF, runs without any
     object left out), with the robot's contact threshold (0 m) marked."""
     closest = np.sort([r.closest_m for r in rows if np.isfinite(r.closest_m)])
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(6.4, 3.6))
     ax = fig.add_subplot()
     if closest.size:
@@ -140,3 +164,93 @@ def closest_figure(rows: Sequence[CampaignRow], title: str = "") -> Figure:
     ax.legend(loc="lower right")
     fig.tight_layout()
     return fig
+
+
+@dataclass(frozen=True)
+class Availability:
+    """Availability over a set of rows (module docstring): ``runs`` rows with the shadow's
+    figures, their ``cycles``, STOP and nuisance STOP cycles among them; ``oracle_runs`` of
+    them also ran the oracle's closed loop, with the mean and least progress share."""
+
+    runs: int
+    cycles: int
+    stop_cycles: int
+    nuisance_cycles: int
+    oracle_runs: int
+    mean_progress_share: float | None
+    worst_progress_share: float | None
+
+    @property
+    def stop_share(self) -> float:
+        """STOP cycles over all cycles (0 without cycles)."""
+        return self.stop_cycles / self.cycles if self.cycles else 0.0
+
+    @property
+    def nuisance_share(self) -> float:
+        """Nuisance STOP cycles over all cycles (0 without cycles)."""
+        return self.nuisance_cycles / self.cycles if self.cycles else 0.0
+
+
+def _shadowed(rows: Sequence[CampaignRow]) -> list[CampaignRow]:
+    return [r for r in rows if r.nuisance_cycles is not None]
+
+
+def availability(rows: Sequence[CampaignRow]) -> Availability:
+    """The availability figures of ``rows`` (rows without the shadow's figures left out)."""
+    seen = _shadowed(rows)
+    shares = [r.progress_share for r in seen if r.progress_share is not None]
+    return Availability(
+        runs=len(seen),
+        cycles=sum(r.cycles for r in seen),
+        stop_cycles=sum(r.commands.get("STOP", 0) for r in seen),
+        nuisance_cycles=sum(r.nuisance_cycles or 0 for r in seen),
+        oracle_runs=len(shares),
+        mean_progress_share=float(np.mean(shares)) if shares else None,
+        worst_progress_share=min(shares) if shares else None,
+    )
+
+
+def nuisance_causes(rows: Sequence[CampaignRow]) -> Counter[str]:
+    """What set our command in the nuisance STOP cycles, over the campaign."""
+    total: Counter[str] = Counter()
+    for row in rows:
+        total.update(row.nuisance_causes)
+    return total
+
+
+AVAILABILITY_COLUMNS = (
+    "scenario",
+    "runs",
+    "STOP",
+    "nuisance STOP",
+    "oracle runs",
+    "progress vs oracle",
+    "least",
+)
+
+
+def availability_table(rows: Sequence[CampaignRow]) -> list[list[str]]:
+    """:func:`availability` per scenario and overall as table rows (columns
+    :data:`AVAILABILITY_COLUMNS`: runs with the shadow's figures, STOP and nuisance STOP
+    cycles as shares of all cycles, runs with the oracle, the mean and least progress share;
+    in %, ``-`` where no run had the shadow or the oracle; the last row ``all``)."""
+    groups = {**_groups(rows), "all": list(rows)}
+
+    def pct(value: float | None) -> str:
+        return "-" if value is None else f"{100.0 * value:.1f} %"
+
+    table = []
+    for name, group in groups.items():
+        a = availability(group)
+        table.append(
+            [
+                name,
+                str(a.runs),
+                pct(a.stop_share if a.cycles else None),
+                pct(a.nuisance_share if a.cycles else None),
+                str(a.oracle_runs),
+                pct(a.mean_progress_share),
+                pct(a.worst_progress_share),
+            ]
+        )
+    return table

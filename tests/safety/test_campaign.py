@@ -1,13 +1,16 @@
-"""The campaign file and the contact-rate bound, without a cluster (SR-RUN-8).
+"""The campaign file, the contact-rate bound and the availability figures, without a cluster
+(SR-RUN-8).
 
 The bound is checked against an independent reference: the Clopper-Pearson upper limit is by
 definition the ``level`` quantile of Beta(k + 1, n - k) (``scipy.stats.beta``), and with no
-violation ``1 - (1 - level) ** (1 / n)`` in closed form.
+violation ``1 - (1 - level) ** (1 / n)`` in closed form. A row's nuisance STOPs and progress
+share are checked against :func:`safety.availability.compare` on the same seed.
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -17,14 +20,41 @@ from scipy.stats import beta
 from typer.testing import CliRunner
 
 from evidence.cli.main import app
+from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
-from safety.campaign import CampaignError, CampaignLog, CampaignRow, Encounter, failed_row
-from safety.campaign_stats import by_scenario, contact_bound, upper_limit
+from pipeline.jsoncodec import dumps
+from pipeline.sources.sim.scenarios import make_simulation
+from safety.availability import compare
+from safety.campaign import (
+    CampaignError,
+    CampaignLog,
+    CampaignRow,
+    Encounter,
+    failed_row,
+    run_encounter,
+)
+from safety.campaign_stats import (
+    availability,
+    availability_table,
+    by_scenario,
+    contact_bound,
+    nuisance_causes,
+    upper_limit,
+)
+from safety.run import run_simulation
+from safety.runtime import Runtime
 
 CODE = ["safety/campaign.py", "safety/campaign_stats.py"]
 
 
-def _row(scenario: str, seed: int, moving: tuple[float, ...] = ()) -> CampaignRow:
+def _row(
+    scenario: str,
+    seed: int,
+    moving: tuple[float, ...] = (),
+    *,
+    nuisance: int | None = 4,
+    share: float | None = None,
+) -> CampaignRow:
     return CampaignRow(
         Encounter(scenario, seed, 5.0),
         cycles=50,
@@ -35,6 +65,9 @@ def _row(scenario: str, seed: int, moving: tuple[float, ...] = ()) -> CampaignRo
         progress_m=3.0,
         route_m=30.0,
         cpu_ms={"p50": 10.0, "p99": 20.0, "max": 30.0},
+        nuisance_cycles=nuisance,
+        nuisance_causes={} if not nuisance else {"zone:CONE": nuisance - 1, "path end": 1},
+        progress_share=share,
     )
 
 
@@ -101,6 +134,126 @@ def test_a_line_cut_short_is_dropped_and_the_rest_kept(tmp_path: Path) -> None:
     assert json.loads(lines[2])["seed"] == 2
 
 
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
+def test_a_row_counts_the_nuisance_stops_compare_finds(safecase_config: SafecaseConfig) -> None:
+    """tug_overtaking seed 3, 2.5 s: the robot stops in 14 of 25 cycles, in 7 of them for the
+    tug's cone of reach where the oracle, knowing the tug's true course, would not. The row's
+    count, causes and progress share are :func:`compare`'s; the shadow leaves our own run as
+    it is alone."""
+    name, seed, length = "tug_overtaking", 3, 2.5
+    row = run_encounter(safecase_config, Encounter(name, seed, length), oracle=True)
+    reference = compare(safecase_config, name, seed, length)
+    # some STOPs are nuisance and some are not, else the count checks nothing
+    assert 0 < reference.nuisance_cycles < row.commands["STOP"]
+    assert row.nuisance_cycles == reference.nuisance_cycles
+    assert row.nuisance_causes == dict(reference.nuisance_causes())
+    assert row.nuisance_share == pytest.approx(reference.nuisance_share, abs=1 / row.cycles)
+    assert row.progress_share == reference.progress_share()
+    assert row.progress_share is not None
+    assert 0.0 < row.progress_share < 1.0
+    alone = run_simulation(
+        safecase_config,
+        make_simulation(safecase_config, name, seed, length),
+        runtime=Runtime(
+            safecase_config, classifier=Classifier.from_config(safecase_config.classify)
+        ),
+    )
+    assert alone.sim is not None
+    assert row.commands == dict(alone.actions)
+    assert row.progress_m == float(alone.sim.ego_log["arc_m"][-1])
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
+def test_a_row_with_availability_reads_back_the_same(tmp_path: Path) -> None:
+    row = _row("random_encounter", 3, nuisance=5, share=0.8125)
+    line = dumps(row.to_json())
+    assert json.loads(line)["nuisance_causes"] == {"path end": 1, "zone:CONE": 4}
+    assert CampaignRow.from_json(json.loads(line)) == row
+    assert row.nuisance_share == pytest.approx(0.1)
+    path = tmp_path / "c.jsonl"
+    with CampaignLog.open(path, SafecaseConfig()) as log:
+        log.add(row)
+    with CampaignLog.open(path, SafecaseConfig()) as log:
+        assert log.rows == [row]
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="property", code=["safety/campaign.py"])
+@given(
+    nuisance=st.none() | st.integers(0, 10_000),
+    causes=st.dictionaries(st.text(min_size=1, max_size=20), st.integers(1, 10_000), max_size=5),
+    share=st.none() | st.floats(0.0, 10.0),
+    closest_m=st.floats(0.0, 50.0) | st.just(float("inf")),
+)
+def test_every_row_reads_back_from_its_line(
+    nuisance: int | None, causes: dict[str, int], share: float | None, closest_m: float
+) -> None:
+    row = replace(
+        _row("random_encounter", 9),
+        nuisance_cycles=nuisance,
+        nuisance_causes=causes,
+        progress_share=share,
+        closest_m=closest_m,
+    )
+    assert CampaignRow.from_json(json.loads(dumps(row.to_json()))) == row
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
+def test_a_row_without_availability_keys_resumes_without_figures(tmp_path: Path) -> None:
+    """A line lacking the availability keys loads (the campaign resumes) with no shadow
+    figures: it counts in the contact bound, not in the availability; a malformed value is
+    refused naming the file and line."""
+    config = SafecaseConfig()
+    path = tmp_path / "c.jsonl"
+    with CampaignLog.open(path, config) as log:
+        log.add(_row("random_encounter", 1, (0.3,)))
+    header, line = path.read_text().splitlines()
+    short = json.loads(line)
+    for key in ("nuisance_cycles", "nuisance_causes", "progress_share"):
+        del short[key]
+    path.write_text(f"{header}\n{dumps(short)}\n")
+    with CampaignLog.open(path, config) as log:
+        (old,) = log.rows
+        log.add(_row("random_encounter", 2, share=0.5))
+    assert (old.nuisance_cycles, old.nuisance_causes, old.progress_share) == (None, {}, None)
+    assert old.nuisance_share is None
+    with CampaignLog.open(path, config) as log:
+        rows = log.rows
+    assert contact_bound(rows).violations == 1
+    figures = availability(rows)
+    assert (figures.runs, figures.cycles, figures.nuisance_cycles) == (1, 50, 4)
+    short["nuisance_cycles"] = "many"
+    path.write_text(f"{header}\n{dumps(short)}\n")
+    with pytest.raises(CampaignError, match=r"c\.jsonl:2: not a campaign row"):
+        CampaignLog.open(path, config)
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign_stats.py"])
+def test_the_availability_figures_per_scenario_and_overall() -> None:
+    rows = [
+        _row("a", 0, nuisance=4, share=0.5),
+        _row("a", 1, nuisance=0, share=1.0),
+        _row("b", 0, nuisance=2),
+        _row("b", 1, nuisance=None),  # no shadow figures: left out
+        failed_row(Encounter("b", 2, 5.0), "boom"),
+    ]
+    overall = availability(rows)
+    assert (overall.runs, overall.cycles, overall.stop_cycles) == (3, 150, 30)
+    assert overall.nuisance_share == pytest.approx(6 / 150)
+    assert overall.stop_share == pytest.approx(30 / 150)
+    assert (overall.oracle_runs, overall.mean_progress_share) == (2, 0.75)
+    assert overall.worst_progress_share == 0.5
+    assert nuisance_causes(rows) == {"zone:CONE": 4, "path end": 2}
+    assert availability_table(rows) == [
+        ["a", "2", "20.0 %", "4.0 %", "2", "75.0 %", "50.0 %"],
+        ["b", "1", "20.0 %", "4.0 %", "0", "-", "-"],
+        ["all", "3", "20.0 %", "4.0 %", "2", "75.0 %", "50.0 %"],
+    ]
+    unmeasured = [failed_row(Encounter("c", 0, 1.0), "x")]
+    empty = availability(unmeasured)
+    assert (empty.runs, empty.nuisance_share, empty.mean_progress_share) == (0, 0.0, None)
+    assert availability_table(unmeasured)[-1] == ["all", "0", "-", "-", "0", "-", "-"]
+
+
 def test_the_command_refuses_bad_input(tmp_path: Path) -> None:
     bad = tmp_path / "bad.jsonl"
     bad.write_text("garbage\n")
@@ -131,13 +284,16 @@ def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
     target = tmp_path / "c.jsonl"
     args = ["campaign", "--encounters", "2", "--duration", "1", "--workers", "1"]
     first = CliRunner().invoke(
-        app, [*args, "--out", str(target), "--plot", str(tmp_path / "p.png")]
+        app, [*args, "--oracle", "--out", str(target), "--plot", str(tmp_path / "p.png")]
     )
     assert first.exit_code == 0, first.output
     assert "Dask dashboard: http" in first.output
     assert "random_encounter" in first.output
+    assert "nuisance STOP" in first.output
     assert (tmp_path / "p.png").stat().st_size > 0
-    assert len(target.read_text().splitlines()) == 3
+    lines = target.read_text().splitlines()
+    assert len(lines) == 3
+    assert all(json.loads(line)["progress_share"] is not None for line in lines[1:])
     more = CliRunner().invoke(
         app,
         [
@@ -155,4 +311,7 @@ def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
     assert more.exit_code == 0, more.output
     assert "resuming" in more.output
     assert "2 of 3 runs done" in more.output
-    assert len(target.read_text().splitlines()) == 4
+    lines = target.read_text().splitlines()
+    assert len(lines) == 4
+    assert json.loads(lines[3])["progress_share"] is None  # this call ran without --oracle
+    assert json.loads(lines[3])["nuisance_cycles"] is not None
