@@ -42,6 +42,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/braking.py",
     "safety/geometry/contact.py",
     "safety/geometry/costmap.py",
+    "safety/geometry/envelopes.py",
     "safety/geometry/swept.py",
 )
 

@@ -4,7 +4,9 @@ The verdict for a pair (A, B) is *clear* exactly when one of these axis tests se
 by more than the pair's threshold ``thr = tolerance + RHO * M + slack_A + slack_B`` (metres;
 ``M`` the largest coordinate magnitude of the pair, ``slack`` from the normalisation):
 
-* the x or y axis (bounding boxes, compared exactly),
+* the x or y axis (bounding boxes; their threshold is ``tolerance + (slack_A + RHO * M_A) +
+  (slack_B + RHO * M_B)``, ``M_X`` the largest coordinate magnitude of X, which is at least
+  ``thr`` and the same in both entry points),
 * the line through the two bounding-box centres,
 * any edge normal of A or of B (the separating axis theorem: two convex polygons are disjoint
   if and only if one of these separates them).
@@ -63,6 +65,13 @@ class SatStats:
         }
 
 
+def _reach(vertices: FloatArray, slack_m: FloatArray) -> FloatArray:
+    """How far each polygon's exact region may reach beyond its bounding box, with the rounding
+    of the box comparison: ``slack + RHO * M`` per polygon (``vertices`` (2, K, N)) [m]."""
+    magnitude: FloatArray = np.abs(vertices).max(axis=(0, 1))
+    return np.asarray(slack_m, dtype=np.float64) + RHO * magnitude
+
+
 class SatChecker:
     """Batched SAT overlap tests with reusable scratch buffers (not thread-safe).
 
@@ -96,9 +105,14 @@ class SatChecker:
         np.maximum.reduce(va, axis=1, out=box[2:, 0])
         np.minimum.reduce(vb, axis=1, out=box[:2, 1])
         np.maximum.reduce(vb, axis=1, out=box[2:, 1])
-        reach = self._ws.get("reach", (2, 2, n_all))  # [row, side]: the other side's max + tol
-        np.add(box[2:, 1], self.tolerance_m, out=reach[:, 0])
-        np.add(box[2:, 0], self.tolerance_m, out=reach[:, 1])
+        # min_A <= max_B + pad and min_B <= max_A + pad, pad = tol + reach_A + reach_B with
+        # reach_X = slack_X + RHO * M_X: a polygon's exact region may lie up to its slack
+        # beyond its vertices, and RHO * M covers the rounding of these sums.
+        pad = np.add(_reach(va, a.slack_m), _reach(vb, b.slack_m))
+        pad += self.tolerance_m
+        reach = self._ws.get("reach", (2, 2, n_all))  # [row, side]: the other side's max + pad
+        np.add(box[2:, 1], pad, out=reach[:, 0])
+        np.add(box[2:, 0], pad, out=reach[:, 1])
         near = np.less_equal(box[:2], reach).reshape(4, n_all)
         idx = np.flatnonzero(np.logical_and.reduce(near, axis=0))
         self.stats = SatStats(pairs=n_all, box=n_all - idx.size)
@@ -122,10 +136,16 @@ class SatChecker:
         np.maximum.reduce(va, axis=1, out=box_a[2:])
         np.minimum.reduce(vb, axis=1, out=box_b[:2])
         np.maximum.reduce(vb, axis=1, out=box_b[2:])
-        left[:2] = box_a[:2]
+        # The same pad as overlap_pairs, split by side: min_A - reach_A <= max_B + tol +
+        # reach_B and -(max_A + tol + reach_A) <= -(min_B - reach_B).
+        reach_a, reach_b = _reach(va, a.slack_m), _reach(vb, b.slack_m)
+        np.subtract(box_a[:2], reach_a, out=left[:2])
         np.subtract(-tol, box_a[2:], out=left[2:])
+        left[2:] -= reach_a
         np.add(box_b[2:], tol, out=right[:2])
+        right[:2] += reach_b
         np.negative(box_b[:2], out=right[2:])
+        right[2:] += reach_b
         # The longer side of the (Na, Nb) table runs innermost (numpy's inner loop).
         if a.n >= b.n:
             near = np.less_equal(left[:, None, :], right[:, :, None])

@@ -133,3 +133,39 @@ def test_the_grown_polygon_keeps_the_rounding_margin(dtype: type[np.floating]) -
     for k in range(3):
         inner = _edge_distances(polygons.vertex_list(k), centre).min()
         assert inner >= float(radius[k]) + 0.5 * ROUNDING_M, (k, inner - float(radius[k]))
+
+
+@pytest.mark.requirement("SR-STOP-4", kind="example", code=ENVELOPES)
+def test_a_single_precision_confidence_is_tiered_at_its_float64_value() -> None:
+    """A float32 confidence (an exported classifier's output) is compared with the tier
+    thresholds at its own value, widened to float64: float32(0.7) is 0.69999998..., below a
+    threshold of 0.7, so it takes the medium tier. Compared in float32 the threshold would be
+    rounded down to the same value and the row would take the narrower high-tier margin."""
+    params = replace(PARAMS, high_confidence_min=0.7, medium_confidence_min=0.5)
+    builder = EnvelopeBuilder.from_config(CONFIG, params)
+    conf = np.array([0.7, 0.9, 0.4], dtype=np.float32)
+    margin, tier = builder.margins(conf, np.zeros(3, dtype=bool))
+    high, medium, near = params.margins_m
+    assert float(conf[0]) < 0.7
+    assert tier.tolist() == [1, 0, 2]
+    assert margin.tolist() == [medium, high, near]
+    assert margin.dtype == np.float64
+    assert tier.dtype == np.int64
+
+
+@pytest.mark.requirement("SR-STOP-4", kind="example", code=ENVELOPES)
+def test_the_margins_are_floats_also_from_the_exact_parameters() -> None:
+    """With the proofs' exact parameters (Fractions of the configured decimals) the margins
+    are the same float64 array as with the float parameters, and so are the envelopes built
+    from them; an array of Fractions would not be a ``FloatArray``."""
+    conf = np.array([0.95, 0.6, 0.1, 0.95])
+    near = np.array([False, False, False, True])
+    float_margin, float_tier = EnvelopeBuilder.from_config(CONFIG).margins(conf, near)
+    exact = EnvelopeBuilder.from_config(CONFIG, PARAMS.exact())
+    margin, tier = exact.margins(conf, near)
+    assert margin.dtype == np.float64
+    assert margin.tolist() == float_margin.tolist() == [0.4, 0.7, 1.0, 1.0]
+    assert tier.tolist() == float_tier.tolist() == [0, 1, 2, 2]
+    env = exact.build(_predictions("static", 0.95), MODEL_CLASSES)
+    assert env.margin_m.dtype == np.float64
+    assert env.margin_m.tolist() == [PARAMS.margins_m[0]]
