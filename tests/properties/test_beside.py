@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -36,3 +38,34 @@ def test_a_call_queued_with_other_arguments_is_refused() -> None:
     beside.start(pid_plus, 1)
     with pytest.raises(ValueError, match="already queued"):
         beside.start(pid_plus, 1)
+
+
+def _rendezvous(mine: Path, other: Path, timeout_s: float) -> bool:
+    """Leave ``mine``, then wait for ``other``: True only if both calls ran at the same time
+    (the timeout only ends a wait that would otherwise never end)."""
+    mine.touch()
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if other.exists():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def first(mine: Path, other: Path) -> bool:
+    """One side of the rendezvous (importable: the worker spawns)."""
+    return _rendezvous(mine, other, 60.0)
+
+
+def second(mine: Path, other: Path) -> bool:
+    """The other side."""
+    return _rendezvous(mine, other, 60.0)
+
+
+@pytest.mark.usefixtures("worker")
+def test_two_started_calls_run_side_by_side(tmp_path: Path) -> None:
+    a, b = tmp_path / "a", tmp_path / "b"
+    beside.start(first, a, b)
+    beside.start(second, b, a)
+    assert beside.result(first, a, b)
+    assert beside.result(second, b, a)
