@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import math
 import signal
+import threading
 from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 from typing import Annotated
@@ -171,7 +172,7 @@ def run_command(
         why = "exists" if mcap.exists() else f"no folder {mcap.parent}"
         fail(f"--mcap {mcap}: {why}; allowed: a new file in an existing folder")
     log_dir = Path(cfg.audit.log_dir)
-    with _stop_on_sigterm():
+    with _stop_on_signals():
         try:
             if device is not None or emulate is not None:
                 source = _device_source(cfg, device, emulate, name, seed, scans)
@@ -264,19 +265,35 @@ def _generator(outputs: Iterator[CycleOutput]) -> Generator[CycleOutput, None, N
     return outputs
 
 
+# Set by SIGINT and SIGTERM: a stop request the run loops read after every cycle.
+_STOP = threading.Event()
+
+
 @contextlib.contextmanager
-def _stop_on_sigterm() -> Iterator[None]:
-    """SIGTERM (what service managers send) stops the run as Ctrl-C does: the current cycle's
-    record is written, the audit log closed and the summary printed."""
+def _stop_on_signals() -> Iterator[None]:
+    """SIGINT (Ctrl-C) and SIGTERM (what service managers send) stop the run: the current
+    cycle's record is written, the audit log closed and the summary printed. The handler raises
+    KeyboardInterrupt and also sets :data:`_STOP`, which the loops check after each cycle: an
+    exception raised while the interpreter runs a finaliser is dropped ("Exception ignored"),
+    and the request must not be dropped with it."""
 
     def interrupt(signum: int, frame: object) -> None:
+        _STOP.set()
         raise KeyboardInterrupt(f"signal {signum}")
 
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    _STOP.clear()
+    previous = {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _stop_requested() -> None:
+    """Raise KeyboardInterrupt when a stop was requested (see :func:`_stop_on_signals`)."""
+    if _STOP.is_set():
+        raise KeyboardInterrupt("stop requested")
 
 
 def _device_source(
@@ -344,6 +361,7 @@ def _run_live(
     try:
         for o in outputs:
             summary.add(o)
+            _stop_requested()
             c = o.command
             out.print(
                 f"{summary.cycles:5d} {c.action.value:7s} {c.speed_mps:5.2f} m/s{_why(c.reasons)}",
@@ -396,6 +414,7 @@ def _run_recorded(
             for o in outputs:
                 summary.add(o)
                 bar.update(task, completed=summary.cycles)
+                _stop_requested()
         except KeyboardInterrupt:
             outputs.close()  # closes the audit log before the summary
             out.print("stopped on request", highlight=False)

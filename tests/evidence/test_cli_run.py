@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -153,3 +154,27 @@ def test_a_log_that_cannot_be_replayed_leaves_no_audit_log(tmp_path: Path) -> No
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert audit.exists()
+
+
+class _SignalsWhenCollected:
+    """Sends this process SIGINT from its finaliser, where a raised exception is dropped."""
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+
+
+@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/run.py"])
+# The dropped KeyboardInterrupt is reported as unraisable: that is the case under test.
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_stop_request_survives_a_finaliser_that_drops_the_interrupt() -> None:
+    from evidence.cli import run as cli_run
+
+    with cli_run._stop_on_signals():
+        try:
+            _SignalsWhenCollected()  # collected at once: the signal arrives in __del__
+            time.sleep(0.05)
+        except KeyboardInterrupt:
+            pass  # delivered after the finaliser returned: the loop would see it directly
+        with pytest.raises(KeyboardInterrupt, match="stop requested"):
+            cli_run._stop_requested()
+    cli_run._STOP.clear()
