@@ -7,6 +7,7 @@ readable. The evidence plugin writes the signed bundle at the end of the session
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -127,6 +128,10 @@ def run_certification(
         args.append(f"--safecase-key={key}")
     if select:
         args += ["-k", select]
+    # As under `python -m pytest` (make test): the tree's root on sys.path, so processes the
+    # suite spawns can import what its tests define (a console script's sys.path[0] is bin/).
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
     plugin = _ProgressPlugin(console)
     code = pytest.main(args, plugins=[plugin])
     return CertificationResult(exit_code=int(code), bundle=plugin.result_bundle())

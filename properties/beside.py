@@ -10,6 +10,9 @@ paced by its scanner's rate and leaves most of a core idle, so the two soaks sid
 in the time of the longer one instead of the sum. A spawned process shares no state (no forked
 solver or thread pools) with the suite. The figures are the same whichever process computes
 them: what is measured is the call's own process (its RSS and its main thread's CPU time).
+
+The module-level functions use the session's one :class:`Beside`; anything else (its own
+tests) makes its own, so stopping it never ends the session's soaks.
 """
 
 from __future__ import annotations
@@ -19,48 +22,69 @@ from collections.abc import Callable, Hashable
 from multiprocessing.pool import AsyncResult, Pool
 from typing import Any
 
-__all__ = ["WORKERS", "result", "start", "stop"]
+__all__ = ["WORKERS", "Beside", "result", "start", "stop"]
 
 WORKERS = 2
 """How many started calls run at once (one process each)."""
-
-_pool: Pool | None = None
-_started: dict[Hashable, tuple[tuple[Any, ...], AsyncResult[Any]]] = {}
 
 
 def _key(call: Callable[..., Any]) -> Hashable:
     return (call.__module__, call.__qualname__)
 
 
+class Beside:
+    """Worker processes for calls started ahead of the tests that need them (module
+    docstring)."""
+
+    def __init__(self, workers: int = WORKERS) -> None:
+        self.workers = workers
+        self._pool: Pool | None = None
+        self._started: dict[Hashable, tuple[tuple[Any, ...], AsyncResult[Any]]] = {}
+
+    def start(self, call: Callable[..., Any], *args: Any) -> None:
+        """Queue ``call(*args)`` on the worker processes (started on first use); one call per
+        function."""
+        if _key(call) in self._started:
+            raise ValueError(f"{call.__qualname__} is already queued")
+        if self._pool is None:
+            context = multiprocessing.get_context("spawn")
+            self._pool = context.Pool(processes=self.workers, maxtasksperchild=1)
+        self._started[_key(call)] = (args, self._pool.apply_async(call, args))
+
+    def result(self, call: Callable[..., Any], *args: Any) -> Any:
+        """What ``call(*args)`` returns: from a worker when :meth:`start` queued this very call,
+        else computed here. Raises ``ValueError`` when the queued call had other arguments (the
+        figures would not be the ones asked for)."""
+        pending = self._started.pop(_key(call), None)
+        if pending is None:
+            return call(*args)
+        queued, answer = pending
+        if queued != args:
+            raise ValueError(f"{call.__qualname__} was queued with other arguments")
+        return answer.get()
+
+    def stop(self) -> None:
+        """End the workers, whatever they are doing."""
+        self._started.clear()
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool.join()
+            self._pool = None
+
+
+_session = Beside()
+
+
 def start(call: Callable[..., Any], *args: Any) -> None:
-    """Queue ``call(*args)`` on the worker processes (started on first use); one call per
-    function."""
-    global _pool
-    if _key(call) in _started:
-        raise ValueError(f"{call.__qualname__} is already queued")
-    if _pool is None:
-        _pool = multiprocessing.get_context("spawn").Pool(processes=WORKERS, maxtasksperchild=1)
-    _started[_key(call)] = (args, _pool.apply_async(call, args))
+    """:meth:`Beside.start` on the session's workers."""
+    _session.start(call, *args)
 
 
 def result(call: Callable[..., Any], *args: Any) -> Any:
-    """What ``call(*args)`` returns: from the worker when :func:`start` queued this very call,
-    else computed here. Raises ``ValueError`` when the queued call had other arguments (the
-    figures would not be the ones asked for)."""
-    pending = _started.pop(_key(call), None)
-    if pending is None:
-        return call(*args)
-    queued, answer = pending
-    if queued != args:
-        raise ValueError(f"{call.__qualname__} was queued with other arguments")
-    return answer.get()
+    """:meth:`Beside.result` on the session's workers."""
+    return _session.result(call, *args)
 
 
 def stop() -> None:
-    """End the worker, whatever it is doing (the session is over)."""
-    global _pool
-    _started.clear()
-    if _pool is not None:
-        _pool.terminate()
-        _pool.join()
-        _pool = None
+    """End the session's workers (the session is over)."""
+    _session.stop()

@@ -18,26 +18,26 @@ def pid_plus(offset: int) -> int:
 
 
 @pytest.fixture
-def worker() -> Iterator[None]:
-    yield
-    beside.stop()
+def worker() -> Iterator[beside.Beside]:
+    """Workers of the test's own: the session's (the certify soaks) are never touched."""
+    own = beside.Beside()
+    yield own
+    own.stop()
 
 
-@pytest.mark.usefixtures("worker")
-def test_a_started_call_runs_in_the_worker_and_an_unstarted_one_here() -> None:
-    beside.start(pid_plus, 0)
-    assert beside.result(pid_plus, 0) != os.getpid()
-    assert beside.result(pid_plus, 0) == os.getpid()  # taken once; now computed here
+def test_a_started_call_runs_in_the_worker_and_an_unstarted_one_here(worker: beside.Beside) -> None:
+    worker.start(pid_plus, 0)
+    assert worker.result(pid_plus, 0) != os.getpid()
+    assert worker.result(pid_plus, 0) == os.getpid()  # taken once; now computed here
 
 
-@pytest.mark.usefixtures("worker")
-def test_a_call_queued_with_other_arguments_is_refused() -> None:
-    beside.start(pid_plus, 1)
+def test_a_call_queued_with_other_arguments_is_refused(worker: beside.Beside) -> None:
+    worker.start(pid_plus, 1)
     with pytest.raises(ValueError, match="other arguments"):
-        beside.result(pid_plus, 2)
-    beside.start(pid_plus, 1)
+        worker.result(pid_plus, 2)
+    worker.start(pid_plus, 1)
     with pytest.raises(ValueError, match="already queued"):
-        beside.start(pid_plus, 1)
+        worker.start(pid_plus, 1)
 
 
 def _rendezvous(mine: Path, other: Path, timeout_s: float) -> bool:
@@ -62,10 +62,9 @@ def second(mine: Path, other: Path) -> bool:
     return _rendezvous(mine, other, 60.0)
 
 
-@pytest.mark.usefixtures("worker")
-def test_two_started_calls_run_side_by_side(tmp_path: Path) -> None:
+def test_two_started_calls_run_side_by_side(worker: beside.Beside, tmp_path: Path) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
-    beside.start(first, a, b)
-    beside.start(second, b, a)
-    assert beside.result(first, a, b)
-    assert beside.result(second, b, a)
+    worker.start(first, a, b)
+    worker.start(second, b, a)
+    assert worker.result(first, a, b)
+    assert worker.result(second, b, a)
