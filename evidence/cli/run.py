@@ -7,11 +7,8 @@ the scenario served by a device emulator on a pty (``--emulate``), or a recorded
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
-import threading
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated
 
@@ -19,8 +16,9 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from evidence.cli.availability import compared, report_comparison, scan_progress
+from evidence.cli.availability import compared, report_comparison
 from evidence.cli.common import ConfigOption, fail, load_config_or_exit, out, stamp
+from evidence.cli.loops import recorded, run_live, run_recorded, stop_on_signals
 from pipeline.config import SafecaseConfig, config_hash, overridden
 from pipeline.errors import SafecaseError
 from pipeline.sources import FrameSource
@@ -35,13 +33,11 @@ from pipeline.sources.sim.markings_source import MarkingsSource, markings_beside
 from pipeline.sources.sim.rig import sim_source
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED
-from pipeline.sources.sim.source import SimSource, SimSourceBeside
 from safety.availability import Comparison
-from safety.run import RunSummary, contact_speeds, run_audited
+from safety.run import RunSummary, contact_speeds
 from safety.runtime import CycleInput, CycleOutput, Runtime
 
 DEFAULT_DEVICE_SCANS = 100
-Observer = Callable[[CycleInput, CycleOutput], None]
 EMULATORS = ("rplidar", "scip")
 
 
@@ -172,26 +168,26 @@ def run_command(
         why = "exists" if mcap.exists() else f"no folder {mcap.parent}"
         fail(f"--mcap {mcap}: {why}; allowed: a new file in an existing folder")
     log_dir = Path(cfg.audit.log_dir)
-    with _stop_on_signals():
+    with stop_on_signals():
         try:
             if device is not None or emulate is not None:
                 source = _device_source(cfg, device, emulate, name, seed, scans)
                 target = audit or log_dir / f"device-{stamp()}.jsonl"
-                _run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration, mcap)
+                run_live(cfg, source, target, scans or DEFAULT_DEVICE_SCANS, duration, mcap)
                 return
             if log is not None:
                 rule = StampRule(restamp_hz=restamp)
                 source = LogSource(log, scan_topic, odom_topic, rule, odometry=True)
                 source.check()  # a log that cannot be replayed leaves no audit log behind
                 target = audit or log_dir / f"log-{log.name}-{stamp()}.jsonl"
-                summary = _run_recorded(cfg, source, target, scans, duration, measured_clock, mcap)
+                summary = run_recorded(cfg, source, target, scans, duration, measured_clock, mcap)
                 _report(cfg, summary, source)
-                _recorded(mcap)
+                recorded(mcap)
                 return
             if hearing:
                 heard = hearing_simulation(cfg, name, seed or 0, duration or cfg.sim.duration_s)
                 target = audit or log_dir / f"{name}-seed{seed or 0}-{stamp()}.jsonl"
-                summary = _run_recorded(cfg, heard, target, scans, None, measured_clock, mcap)
+                summary = run_recorded(cfg, heard, target, scans, None, measured_clock, mcap)
                 _report(cfg, summary, None)
                 out.print(heard.summary(), highlight=False)
                 _finish(summary, target, None, plot, mcap)
@@ -206,7 +202,7 @@ def run_command(
                     rt: Runtime, observe: Callable[[CycleInput, CycleOutput], None]
                 ) -> RunSummary:
                     source = sim_source(cfg, sim)
-                    return _run_recorded(
+                    return run_recorded(
                         cfg, source, target, None, None, measured_clock, mcap, rt, observe
                     )
 
@@ -214,9 +210,9 @@ def run_command(
                 summary = comparison.ours
             elif markings:
                 aided = markings_beside(cfg, sim)
-                summary = _run_recorded(cfg, aided, target, scans, None, measured_clock, mcap)
+                summary = run_recorded(cfg, aided, target, scans, None, measured_clock, mcap)
             else:
-                summary = _run_recorded(
+                summary = run_recorded(
                     cfg, sim_source(cfg, sim), target, scans, None, measured_clock, mcap
                 )
         except (SafecaseError, ValueError, OSError) as exc:
@@ -238,7 +234,7 @@ def _finish(
     contact while moving."""
     if comparison is not None:
         report_comparison(comparison)
-    _recorded(mcap)
+    recorded(mcap)
     if plot and summary.sim is not None:
         from safety.run_plot import run_figure
 
@@ -252,48 +248,6 @@ def _finish(
     if summary.moving_contacts:
         out.print("[bold red]CONTACT while moving[/]: the governor did not keep the robot safe")
         raise typer.Exit(1)
-
-
-def _recorded(mcap: Path | None) -> None:
-    if mcap is not None:
-        out.print(f"recording: {mcap} (open it in Foxglove)", highlight=False)
-
-
-def _generator(outputs: Iterator[CycleOutput]) -> Generator[CycleOutput, None, None]:
-    """``outputs`` as the generator it is, so a stop can close it (and the audit log)."""
-    assert isinstance(outputs, Generator)
-    return outputs
-
-
-# Set by SIGINT and SIGTERM: a stop request the run loops read after every cycle.
-_STOP = threading.Event()
-
-
-@contextlib.contextmanager
-def _stop_on_signals() -> Iterator[None]:
-    """SIGINT (Ctrl-C) and SIGTERM (what service managers send) stop the run: the current
-    cycle's record is written, the audit log closed and the summary printed. The handler raises
-    KeyboardInterrupt and also sets :data:`_STOP`, which the loops check after each cycle: an
-    exception raised while the interpreter runs a finaliser is dropped ("Exception ignored"),
-    and the request must not be dropped with it."""
-
-    def interrupt(signum: int, frame: object) -> None:
-        _STOP.set()
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    _STOP.clear()
-    previous = {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-
-
-def _stop_requested() -> None:
-    """Raise KeyboardInterrupt when a stop was requested (see :func:`_stop_on_signals`)."""
-    if _STOP.is_set():
-        raise KeyboardInterrupt("stop requested")
 
 
 def _device_source(
@@ -322,105 +276,6 @@ def _device_source(
         sim = make_simulation(bench, name, seed, (wanted + 10) * period_s, retention=BOUNDED)
     driver = cfg.driver.model_copy(update={"protocol": emulate, "port_url": "emulated"})
     return EmulatedSource(driver, period, sim.scans(), 1.0 / period_s)
-
-
-# Which reason a cycle's line shows first: the link, then the other monitors, then a failed
-# stage, then the governor (the first that any of the cycle's reasons starts with).
-_REASON_ORDER = ("driver:", "scan_freshness:", "clock:", "deadline:", "operating_domain:", "")
-
-
-def _why(reasons: tuple[str, ...]) -> str:
-    """The reason worth a line: the scanner link's before the others (``_REASON_ORDER``)."""
-    for prefix in _REASON_ORDER:
-        found = [r for r in reasons if r.startswith(prefix) and not r.startswith("governor:")]
-        if found:
-            return f" ({found[0]})"
-    return f" ({reasons[0]})" if reasons else ""
-
-
-def _run_live(
-    cfg: SafecaseConfig,
-    source: FrameSource,
-    target: Path,
-    max_scans: int,
-    duration_s: float | None,
-    mcap: Path | None,
-) -> None:
-    """A live source: one line per cycle, then the command mix (also when stopped)."""
-    summary = RunSummary(source.name, audit_path=target)
-    outputs = _generator(
-        run_audited(
-            cfg,
-            source,
-            audit_path=target,
-            max_scans=max_scans,
-            duration_s=duration_s,
-            recording=mcap,
-        )
-    )
-    try:
-        for o in outputs:
-            summary.add(o)
-            _stop_requested()
-            c = o.command
-            out.print(
-                f"{summary.cycles:5d} {c.action.value:7s} {c.speed_mps:5.2f} m/s{_why(c.reasons)}",
-                highlight=False,
-                markup=False,
-            )
-    except KeyboardInterrupt:
-        outputs.close()  # closes the audit log before the summary
-        out.print("stopped on request", highlight=False)
-    out.print(
-        f"{summary.cycles} cycles: "
-        + ", ".join(f"{k} {v}" for k, v in sorted(summary.actions.items())),
-        highlight=False,
-    )
-    out.print(f"audit log: {target} (verify: safecase audit verify {target})", highlight=False)
-    _recorded(mcap)
-
-
-def _run_recorded(
-    cfg: SafecaseConfig,
-    source: SimSource | SimSourceBeside | LogSource,
-    target: Path,
-    max_scans: int | None,
-    duration_s: float | None,
-    measured_clock: bool,
-    mcap: Path | None,
-    runtime: Runtime | None = None,
-    observe: Observer | None = None,
-) -> RunSummary:
-    """The simulator or a log, with a progress bar; the summary holds the simulator's verdict.
-    ``runtime`` and ``observe`` are :func:`safety.run.run_audited`'s."""
-    summary = RunSummary(source.name, audit_path=target)
-    total = source.n_frames if isinstance(source, SimSource | SimSourceBeside) else None
-    with scan_progress(source.name) as bar:
-        task = bar.add_task("run", total=total)
-        outputs = _generator(
-            run_audited(
-                cfg,
-                source,
-                audit_path=target,
-                max_scans=max_scans,
-                duration_s=duration_s,
-                measured_clock=measured_clock,
-                recording=mcap,
-                runtime=runtime,
-                observe=observe,
-            )
-        )
-        try:
-            for o in outputs:
-                summary.add(o)
-                bar.update(task, completed=summary.cycles)
-                _stop_requested()
-        except KeyboardInterrupt:
-            outputs.close()  # closes the audit log before the summary
-            out.print("stopped on request", highlight=False)
-    if not isinstance(source, LogSource):
-        summary.sim = source.result()
-    return summary
 
 
 def _report(cfg: SafecaseConfig, summary: RunSummary, log: LogSource | None) -> None:

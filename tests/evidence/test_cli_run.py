@@ -15,7 +15,12 @@ from properties.cli_runner import SAFECASE, run_safecase
 from properties.log_cases import drive, write_carmen, write_ros2_bag
 
 DATA = Path(__file__).resolve().parents[1] / "data"
-CODE = ["evidence/cli/run.py", "safety/run.py", "pipeline/sources/logs/source.py"]
+CODE = [
+    "evidence/cli/run.py",
+    "evidence/cli/loops.py",
+    "safety/run.py",
+    "pipeline/sources/logs/source.py",
+]
 
 
 def _replays(log: Path, cwd: Path, cycles: int) -> None:
@@ -101,7 +106,9 @@ def test_run_refuses_two_sources_and_log_options_without_a_log(tmp_path: Path) -
     assert "none.bag: no such file or folder" in done.stderr
 
 
-@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/run.py"])
+@pytest.mark.requirement(
+    "SR-RUN-4", kind="example", code=["evidence/cli/run.py", "evidence/cli/loops.py"]
+)
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_stopped_run_closes_its_audit_log(tmp_path: Path, signum: int) -> None:
     """SIGTERM (a service manager) and Ctrl-C both close the log: verify says INTACT."""
@@ -163,18 +170,18 @@ class _SignalsWhenCollected:
         os.kill(os.getpid(), signal.SIGINT)
 
 
-@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/run.py"])
+@pytest.mark.requirement("SR-RUN-4", kind="example", code=["evidence/cli/loops.py"])
 # The dropped KeyboardInterrupt is reported as unraisable: that is the case under test.
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
 def test_a_stop_request_survives_a_finaliser_that_drops_the_interrupt() -> None:
-    from evidence.cli import run as cli_run
+    from evidence.cli import loops
 
-    with cli_run._stop_on_signals():
+    with loops.stop_on_signals():
         try:
             _SignalsWhenCollected()  # collected at once: the signal arrives in __del__
             time.sleep(0.05)
         except KeyboardInterrupt:
             pass  # delivered after the finaliser returned: the loop would see it directly
         with pytest.raises(KeyboardInterrupt, match="stop requested"):
-            cli_run._stop_requested()
-    cli_run._STOP.clear()
+            loops.stop_requested()
+    loops._STOP.clear()
