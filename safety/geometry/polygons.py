@@ -237,9 +237,8 @@ def convex_hull_batch(
             f"{what} {bad}: all points are collinear (within {HULL_HALFPLANE * magnitude[bad]:.3g}"
             " m); a polygon needs 3 points that are not on one line"
         )
-    slack = _hull_slack(
-        xs, ys, order, counts, np.concatenate(near_sets), np.concatenate(near_idx), magnitude
-    )
+    near = (np.concatenate(near_sets), np.concatenate(near_idx))
+    slack = _hull_slack(xs, ys, order, counts, near, magnitude, what)
     return order, counts, slack
 
 
@@ -248,15 +247,17 @@ def _hull_slack(
     ys: FloatArray,
     order: IntArray,
     counts: IntArray,
-    near_set: IntArray,
-    near_idx: IntArray,
+    near: tuple[IntArray, IntArray],
     magnitude: FloatArray,
+    what: str,
 ) -> FloatArray:
     """Per set: how far a point left out of the hull may lie outside it (module docstring).
 
-    ``near_set``/``near_idx`` name the points dropped without being certainly inside; only a
-    set where such a point is not a copy of a vertex needs slack.
+    ``near`` (set, point index) names the points dropped without being certainly inside; only
+    a set where such a point is not a copy of a vertex needs slack. ``what`` names the sets in
+    an error, as in :func:`convex_hull_batch`.
     """
+    near_set, near_idx = near
     sets = np.arange(xs.shape[0])[:, None]
     vx, vy = xs[sets, order], ys[sets, order]
     px, py = xs[near_set, near_idx], ys[near_set, near_idx]
@@ -281,7 +282,7 @@ def _hull_slack(
     if sharp.any():
         bad = int(np.flatnonzero(sharp)[0])
         raise DegeneratePolygonError(
-            f"point set {bad}: a vertex angle below {2 * _MIN_SIN_HALF:.1g} rad with points "
+            f"{what} {bad}: a vertex angle below {2 * _MIN_SIN_HALF:.1g} rad with points "
             "within rounding of the boundary; the hull cannot bound its rounding error"
         )
     slack: FloatArray = np.where(

@@ -193,7 +193,7 @@ def test_a_needle_with_a_point_on_its_edge_is_refused() -> None:
     """A vertex angle of about 1e-10 rad with a point on an edge: no useful slack bound."""
     needle = _ring([[0.0, 0.0], [1.0, 0.0], [1.0, 1e-10], [0.5, 0.0]])
     message = (
-        "point set 1: a vertex angle below 2e-09 rad with points within rounding of the "
+        "polygon 1: a vertex angle below 2e-09 rad with points within rounding of the "
         "boundary; the hull cannot bound its rounding error"
     )
     with pytest.raises(DegeneratePolygonError, match=re.escape(message)):
