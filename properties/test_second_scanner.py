@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from evidence.profiles import examples
@@ -133,21 +133,25 @@ def test_the_merged_cloud_clusters_as_sklearn_clusters_it(
 @given(
     first=scans(),
     second=scans(),
-    second_stamp=st.floats(-1.0, 1.0),
+    # The age is drawn directly, around the freshness window [-skew, max_age - skew] (0.18 s
+    # by default), so that merged, stale and blocked scans all come up often; the wide draw
+    # keeps far-off stamps in.
+    age_s=st.one_of(st.floats(-0.1, 0.3), st.floats(-1.0, 1.5)),
     now=st.floats(-1.0, 1.5),
     skew=st.sampled_from([0.0, 0.01, 0.05]),
-    blocked=st.booleans(),
+    blocked=st.sampled_from([False, False, True]),
 )
 def test_a_second_scan_contributes_only_while_fresh_and_unblocked(
     first: Scan,
     second: Scan,
-    second_stamp: float,
+    age_s: float,
     now: float,
     skew: float,
     blocked: bool,
     safecase_config: SafecaseConfig,
 ) -> None:
     config = overridden(safecase_config, {"monitors": {"clock_skew_s": skew}})
+    second_stamp = now - age_s
     ranges = np.full(second.n_beams, 0.01) if blocked else second.ranges_m
     late = Scan(second_stamp, second.angles_rad, ranges)
     frame = Frame(first, now, second=SecondScan(late))
@@ -155,6 +159,7 @@ def test_a_second_scan_contributes_only_while_fresh_and_unblocked(
     merged, report = _scanner(config, (0.0, 0.0, math.pi)).merge(frame, base, now)
     mon = config.monitors
     fresh = bool(is_fresh(now, second_stamp, mon.scan_max_age_s, mon.clock_skew_s))
+    event(report.state.value)
     if not fresh:
         assert report.state is SecondScanState.STALE
     elif blocked:
@@ -162,7 +167,12 @@ def test_a_second_scan_contributes_only_while_fresh_and_unblocked(
     else:
         assert report.state is SecondScanState.MERGED
     assert report.age_s == now - second_stamp
-    if report.state is not SecondScanState.MERGED:
+    if report.state is SecondScanState.MERGED:
+        # Merged: the first scanner's points and every valid beam of the second's.
+        valid = _reference_points(late, config, (0.0, 0.0, math.pi))
+        assert report.n_points == valid.size
+        assert merged.x_m.size == base.x_m.size + valid.size
+    else:
         # Left out: the first scanner's points, untouched, and nothing of the second's.
         assert merged is base
         assert report.n_points == 0
