@@ -9,6 +9,8 @@ the few properties that need more (fuzzers) or fewer (expensive oracles) than th
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 from hypothesis import HealthCheck, Phase, Verbosity, settings
 
 __all__ = ["PROFILES", "active_profile", "examples", "register_profiles"]
@@ -42,6 +44,8 @@ _SCALE = {"dev": 0.5, "ci": 1.0, "certify": 3.0}
 
 _active = "default"
 
+T = TypeVar("T")
+
 
 def register_profiles() -> None:
     """Register the three profiles with Hypothesis (idempotent)."""
@@ -68,3 +72,9 @@ def examples(ci: int) -> int:
     if ci < 1:
         raise ValueError(f"examples: ci budget must be >= 1, got {ci}")
     return max(1, int(ci * _SCALE.get(_active, 1.0)))
+
+
+def by_profile(ci: T, certify: T) -> T:
+    """What a campaign runs under the active profile: ``certify`` under certify, else ``ci``
+    (a number of seeds, a duration in seconds, a tuple of cases)."""
+    return certify if _active == "certify" else ci

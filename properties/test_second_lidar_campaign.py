@@ -8,10 +8,11 @@ import math
 
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import by_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
 from properties.second_lidar_study import HEADER, overtaking_run, table
+from properties.studies import caption, flat, side_by_side
 
 CODE = [
     "properties/second_lidar_study.py",
@@ -27,26 +28,21 @@ EARLIER_S = 2.0
 def test_a_rear_scanner_tracks_an_overtaking_tug_earlier_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:
-    certify = active_profile() == "certify"
-    n_seeds = 10 if certify else 1
+    n_seeds = by_profile(ci=1, certify=10)
     # 8 s covers the overtaking (the front scanner sees the tug by about 5 s); 14 s the turn.
-    duration = 14.0 if certify else 8.0
-    runs = [
-        overtaking_run(safecase_config, seed, rear, duration)
-        for seed in range(n_seeds)
-        for rear in (False, True)
-    ]
+    duration = by_profile(ci=8.0, certify=14.0)
+    pairs = side_by_side(
+        lambda seed, rear: overtaking_run(safecase_config, seed, rear, duration), range(n_seeds)
+    )
     current().table(
         "tug_overtaking: front scanner only / with the rear scanner",
         HEADER,
-        table(runs),
-        caption=f"{n_seeds} seeds ({active_profile()} profile); "
-        "python -m properties.second_lidar_study --seeds 10",
+        table(flat(pairs)),
+        caption=caption(n_seeds, "python -m properties.second_lidar_study --seeds 10", duration),
     )
-    for run in runs:
-        assert run.moving_contacts == 0, run
-    for seed in range(n_seeds):
-        front, both = (r for r in runs if r.seed == seed)
+    for front, both in pairs:
+        assert front.moving_contacts == 0, front
+        assert both.moving_contacts == 0, both
         assert math.isfinite(both.seen_s), both
         assert both.seen_s <= front.seen_s - EARLIER_S, (front, both)
         assert both.second_left_out == 0, both

@@ -8,17 +8,19 @@ import math
 
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import by_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
 from properties.sensors_loop_study import (
     HEADER,
     WALKER_HEADER,
+    WalkerRun,
     reversal_run,
     table,
     walker_run,
     walker_table,
 )
+from properties.studies import caption, flat, side_by_side
 
 CODE = [
     "properties/sensors_loop_study.py",
@@ -32,29 +34,25 @@ CODE = [
 def test_the_radar_sees_a_reversing_tug_no_later_while_the_robot_moves_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:
-    certify = active_profile() == "certify"
-    n_seeds = 10 if certify else 1
+    n_seeds = by_profile(ci=1, certify=10)
     # The tug reverses at about 4 s; 6 s covers the detections, 9 s the approach after it.
-    duration = 9.0 if certify else 6.0
-    runs = [
-        reversal_run(safecase_config, seed, radar, duration_s=duration)
-        for seed in range(n_seeds)
-        for radar in (False, True)
-    ]
+    duration = by_profile(ci=6.0, certify=9.0)
+    pairs = side_by_side(
+        lambda seed, radar: reversal_run(safecase_config, seed, radar, duration_s=duration),
+        range(n_seeds),
+    )
     current().table(
         "reversing_tug_fog in clear air, closed loop, robot moving: LiDAR only / LiDAR + radar "
         "(frames at 10 Hz)",
         HEADER,
-        table(runs),
-        caption=f"{n_seeds} seeds, {duration} s ({active_profile()} profile); "
-        "python -m properties.sensors_loop_study --seeds 10",
+        table(flat(pairs)),
+        caption=caption(n_seeds, "python -m properties.sensors_loop_study --seeds 10", duration),
     )
-    for run in runs:
+    for run in flat(pairs):
         assert run.moving_contacts == 0, run
         assert run.true_frame is not None, run  # the tug does reverse
         assert run.progress_m > 1.0, run  # the robot moved
-    for seed in range(n_seeds):
-        lidar, radar = (r for r in runs if r.seed == seed)
+    for lidar, radar in pairs:
         assert radar.radar_matched_cycles > 0, radar
         # The radar's Doppler sees the reversal within a frame of its passing the threshold
         # (its 0.1 m/s noise), and it and the fused track no later than the LiDAR-only track,
@@ -75,23 +73,22 @@ def test_the_radar_sees_a_reversing_tug_no_later_while_the_robot_moves_without_c
 def test_at_night_the_camera_sees_the_agent_beyond_the_lidar_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:
-    certify = active_profile() == "certify"
-    seeds = range(10 if certify else 1)
-    weathers = ("night", "night_fog") if certify else ("night",)
+    n_seeds = by_profile(ci=1, certify=10)
+    weathers = by_profile(ci=("night",), certify=("night", "night_fog"))
     # The agent ahead is in the camera's view from the start; the walker steps out at 6-9 s.
-    duration = 12.0 if certify else 5.0
-    runs = [
-        walker_run(safecase_config, seed, thermal, weather, duration)
-        for weather in weathers
-        for seed in seeds
-        for thermal in (False, True)
-    ]
+    duration = by_profile(ci=5.0, certify=12.0)
+    runs: list[WalkerRun] = []
+    for weather in weathers:
+
+        def walker(seed: int, thermal: bool, weather: str = weather) -> WalkerRun:
+            return walker_run(safecase_config, seed, thermal, weather, duration)
+
+        runs += flat(side_by_side(walker, range(n_seeds)))
     current().table(
         "night_fog_walker_behind_tug, closed loop: LiDAR only / LiDAR + thermal",
         WALKER_HEADER,
         walker_table(runs),
-        caption=f"{len(seeds)} seeds, {duration} s ({active_profile()} profile); "
-        "python -m properties.sensors_loop_study --seeds 10",
+        caption=caption(n_seeds, "python -m properties.sensors_loop_study --seeds 10", duration),
     )
     for run in runs:
         assert run.moving_contacts == 0, run
