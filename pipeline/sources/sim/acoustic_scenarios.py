@@ -115,7 +115,7 @@ class HearingSimSource(SimSourceBeside):
 
     def frames(self) -> Iterator[Frame]:
         """The inner source's frames, each with the newest alert heard by its stamp."""
-        for frame in self.inner.frames():
+        for frame in self.upstream.frames():
             now = frame.stamp_s
             if now >= self._next_s and frame.pose is not None:
                 self._next_s = now + self.hop_s

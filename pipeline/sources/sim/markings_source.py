@@ -91,7 +91,7 @@ class MarkingsSource(SimSourceBeside):
         odometry: Pose | None = None
         localiser: Localiser | None = None
         last: tuple[float, Pose] | None = None
-        for frame in self.inner.frames():
+        for frame in self.upstream.frames():
             if frame.scan is not None and frame.pose is not None:
                 truth, stamp = frame.pose, frame.scan.stamp_s
                 if last is None or localiser is None or odometry is None:

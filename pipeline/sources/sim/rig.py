@@ -37,14 +37,13 @@ def sim_source(
     seeded by the run's seed alone) when ``scan2.enabled``, and with the simulated sensors
     ``runtime.sim_sensors`` beside it (:func:`~pipeline.sources.sim.sensors_source.
     sensors_beside`, SR-FUS-9); else the plain source."""
-    inner = SimSource(sim)
+    source: SimSource | SimSourceBeside = SimSource(sim)
     second = config.scan2
-    upstream = None
     if second.enabled:
         mount = (second.mount_x_m, second.mount_y_m, second.mount_yaw_rad)
         rng = np.random.default_rng([sim.seed, SECOND_LIDAR_STREAM])
         spec = lidar_spec_from_config(config)
-        upstream = SecondLidarSource(inner, spec, mount, rng, outages=outages)
-    if not config.runtime.sim_sensors:
-        return inner if upstream is None else upstream
-    return sensors_beside(config, sim, config.runtime.sim_sensors, inner=inner, upstream=upstream)
+        source = SecondLidarSource(source, spec, mount, rng, outages=outages)
+    if config.runtime.sim_sensors:
+        source = sensors_beside(config, sim, config.runtime.sim_sensors, upstream=source)
+    return source

@@ -1,8 +1,9 @@
 """A second scanner on the simulated robot (SR-LID-1, SR-LID-3, SR-LID-4).
 
-:class:`SecondLidarSource` wraps a closed-loop :class:`~pipeline.sources.sim.source.SimSource`:
-to each of its frames it adds a revolution of a second scanner mounted at ``mount`` on the same
-robot (``scan2.mount_*``), cast over the same world with the same beam layout and sensor model
+:class:`SecondLidarSource` sits beside a closed-loop simulator
+(:class:`~pipeline.sources.sim.source.SimSourceBeside`): to each of its frames it adds a
+revolution of a second scanner mounted at ``mount`` on the same robot (``scan2.mount_*``), cast
+over the same world with the same beam layout and sensor model
 (:class:`~pipeline.sources.sim.lidar.Lidar`, from its own generator, so the first scanner's
 streams are the same bits with or without it), stamped with the first scan's stamp (the two
 scanners synchronised) and carrying the robot's pose at that stamp.
@@ -28,19 +29,19 @@ __all__ = ["SecondLidarSource"]
 
 
 class SecondLidarSource(SimSourceBeside):
-    """``inner``'s frames, each with a second scanner's newest revolution (module docstring).
+    """``upstream``'s frames, each with a second scanner's newest revolution (module docstring).
     ``rng`` draws the second scanner's noise; ``outages`` are ``(start_s, end_s)`` intervals."""
 
     def __init__(
         self,
-        inner: SimSource,
+        upstream: SimSource | SimSourceBeside,
         spec: LidarSpec,
         mount: Pose,
         rng: np.random.Generator,
         *,
         outages: Sequence[tuple[float, float]] = (),
     ) -> None:
-        super().__init__(inner)
+        super().__init__(upstream)
         for start, end in outages:
             if not start < end:
                 raise ValueError(
@@ -55,7 +56,7 @@ class SecondLidarSource(SimSourceBeside):
         return any(start <= stamp_s < end for start, end in self.outages)
 
     def frames(self) -> Iterator[Frame]:
-        """The inner source's frames with the second scanner's newest revolution added."""
+        """The upstream source's frames with the second scanner's newest revolution added."""
         sim = self.inner.sim
         ego = dataclasses.replace(sim.ego_spec, mount=self.mount)
 
@@ -63,7 +64,7 @@ class SecondLidarSource(SimSourceBeside):
             return ego.scanner_poses(sim.ego.poses_at(t_s))
 
         newest: SecondScan | None = None
-        for frame in self.inner.frames():
+        for frame in self.upstream.frames():
             if frame.scan is not None and not self._out(frame.scan.stamp_s):
                 stamp = frame.scan.stamp_s
                 scan, _ = self.lidar.scan(

@@ -1,8 +1,9 @@
 """The simulated thermal camera and radar run beside the simulator, into the frames (SR-FUS-9).
 
-:class:`SensorsSource` wraps a closed-loop :class:`~pipeline.sources.sim.source.SimSource`: for
-each frame it takes the robot's pose at the scan's stamp (the frame's, exact in simulation) and
-its velocity there (:func:`ego_twist`), and
+:class:`SensorsSource` sits beside a closed-loop simulator
+(:class:`~pipeline.sources.sim.source.SimSourceBeside`): for each frame it takes the robot's
+pose at the scan's stamp (the frame's, exact in simulation) and its velocity there
+(:func:`ego_twist`), and
 
 * renders the LWIR frame the camera captures at that stamp
   (:class:`~pipeline.sources.sim.thermal_camera.ThermalRenderer`, in the run's weather) and runs
@@ -94,36 +95,29 @@ class SensorsReport:
 
 
 class SensorsSource(SimSourceBeside):
-    """``inner``'s frames with the thermal camera's detections, the radar's returns and the
+    """``upstream``'s frames with the thermal camera's detections, the radar's returns and the
     robot's twist added (module docstring). ``camera`` (a renderer and its detector) and
     ``radar`` may each be None (that sensor is absent); ``reflectors_m`` are the world's mapped
-    radar reflectors ``(k, 4)``, world frame. ``upstream``, another source beside the same
-    ``inner`` (the second scanner's), gives the frames the sensors are added to."""
+    radar reflectors ``(k, 4)``, world frame."""
 
     def __init__(
         self,
-        inner: SimSource,
+        upstream: SimSource | SimSourceBeside,
         camera: tuple[ThermalRenderer, ThermalDetector] | None,
         radar: SimRadar | None,
         *,
         reflectors_m: FloatArray | None = None,
-        upstream: SimSourceBeside | None = None,
     ) -> None:
-        super().__init__(inner)
-        if upstream is not None and upstream.inner is not inner:
-            raise ValueError("SensorsSource: upstream must wrap the same inner source")
+        super().__init__(upstream)
         self.camera = camera
         self.radar = radar
         self.reflectors_m = reflectors_m
-        self.upstream = upstream
         self.last: SensorsReport | None = None
 
     def frames(self) -> Iterator[Frame]:
-        """The inner (or upstream) source's frames, each with what the sensors saw at its
-        scan's stamp."""
+        """The upstream source's frames, each with what the sensors saw at its scan's stamp."""
         sim = self.inner.sim
-        frames = self.inner.frames() if self.upstream is None else self.upstream.frames()
-        for frame in frames:
+        for frame in self.upstream.frames():
             if frame.scan is None or frame.pose is None:
                 yield frame
                 continue
@@ -150,18 +144,18 @@ def sensors_beside(
     sim: Simulation,
     sensors: Sequence[Sensor],
     *,
-    inner: SimSource | None = None,
-    upstream: SimSourceBeside | None = None,
+    upstream: SimSource | SimSourceBeside | None = None,
     weather: Weather | None = None,
 ) -> SensorsSource:
-    """``sim`` in closed loop (``inner``, default a plain :class:`SimSource`; the frames of
-    ``upstream`` beside it, when given) with the named
-    ``sensors`` beside it: the camera at the ``thermal`` section's extrinsic (no calibration
-    error) and its detector, the radar of :func:`radar_spec`. The camera sees ``weather``
-    (default: the weather scenario's preset when ``sim`` is one of
+    """``sim`` in closed loop (``upstream``, default a plain :class:`SimSource` of ``sim``) with
+    the named ``sensors`` beside it: the camera at the ``thermal`` section's extrinsic (no
+    calibration error) and its detector, the radar of :func:`radar_spec`. The camera sees
+    ``weather`` (default: the weather scenario's preset when ``sim`` is one of
     :data:`~pipeline.sources.sim.weather_scenarios.WEATHER_SCENARIOS`, else clear air). Their
     noise is seeded by the run's seed and the sensor's stream key alone."""
-    source = SimSource(sim) if inner is None else inner
+    source = SimSource(sim) if upstream is None else upstream
+    if (source if isinstance(source, SimSource) else source.inner).sim is not sim:
+        raise ValueError("sensors_beside: upstream must run the same simulation")
     if weather is None:
         preset = WEATHER_SCENARIOS[sim.name][1] if sim.name in WEATHER_SCENARIOS else "clear"
         weather = WEATHER_PRESETS[preset]
@@ -174,4 +168,4 @@ def sensors_beside(
     radar = None
     if "radar" in sensors:
         radar = SimRadar(radar_spec(config), np.random.default_rng([sim.seed, RADAR_STREAM]))
-    return SensorsSource(source, camera, radar, upstream=upstream)
+    return SensorsSource(source, camera, radar)

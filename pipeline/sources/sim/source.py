@@ -92,14 +92,20 @@ class SimSource:
 
 
 class SimSourceBeside:
-    """A closed-loop simulator source with another sensor's work done beside it (the microphone
-    array, the marking localisation): ``inner``'s name, length, commands and result, while a
-    subclass's :meth:`frames` adds what that sensor found to ``inner``'s frames."""
+    """A closed-loop simulator source with another sensor's work done beside it (a second
+    scanner, the camera and radar, the microphone array, the marking localisation): the
+    simulator's name, length, commands and result, while a subclass's :meth:`frames` adds what
+    its sensor found to ``upstream``'s frames.
+
+    ``upstream`` is the simulator's own source or another source beside it, so that sensors
+    compose one on top of the other (:func:`pipeline.sources.sim.rig.sim_source`); ``inner`` is
+    always the simulator's own :class:`SimSource` underneath."""
 
     live = False
 
-    def __init__(self, inner: SimSource) -> None:
-        self.inner = inner
+    def __init__(self, upstream: SimSource | SimSourceBeside) -> None:
+        self.upstream = upstream
+        self.inner: SimSource = upstream if isinstance(upstream, SimSource) else upstream.inner
 
     @property
     def name(self) -> str:
@@ -112,8 +118,8 @@ class SimSourceBeside:
         return self.inner.n_frames
 
     def frames(self) -> Iterator[Frame]:
-        """The inner source's frames, unchanged (a subclass adds its sensor's work)."""
-        return self.inner.frames()
+        """The upstream source's frames, unchanged (a subclass adds its sensor's work)."""
+        return self.upstream.frames()
 
     def command(self, speed_mps: float, at_s: float) -> None:
         """The runtime's command, passed to the inner source."""
