@@ -16,7 +16,7 @@ detections_in_frame`) and tracked there, else tracking happens in the robot fram
 detections move with the same pose. Radar returns go through the radar's front-end
 (:class:`pipeline.sensors.radar.RadarFrontEnd`, SR-FUS-7, SR-FUS-9): its filters (no reflector
 map), its ego-motion compensation with the frame's pose and twist, and the position weight of the
-scan's LiDAR degradation index (its DBSCAN noise points over its valid points); fusion then
+scan's LiDAR degradation index (its share of isolated returns near the scanner); fusion then
 gates them with the tracker's own gates (:class:`pipeline.sensors.radar.RadarGate`). A moving
 robot without a twist cannot compensate the Doppler: the frame is refused (the runtime STOPs
 naming the fusion stage).
@@ -65,6 +65,7 @@ from pipeline.shape.lshape import LShapeShapes
 from pipeline.track.heading import TrackHeadings
 from pipeline.track.tracker import Tracker, detections_in_frame
 from pipeline.types import (
+    NOISE_LABEL,
     Classification,
     Clusters,
     CycleCounts,
@@ -380,10 +381,12 @@ class Perception:
         if self.radar is None:
             raise PerceptionError("radar returns need the radar front-end (Perception.radar)")
         kept, counts = self.radar.filter(frame.radar, pose, None)
+        section = self.radar.section
         index = degradation_index(
-            tracked.points.n,
-            tracked.clusters.counts.n_noise_points,
-            self.radar.section.degraded_noise_fraction,
+            tracked.points.range_m,
+            tracked.clusters.point_labels == NOISE_LABEL,
+            section.degraded_within_m,
+            section.degraded_noise_fraction,
         )
         try:
             framed = self.radar.in_tracking_frame(frame.radar, kept, pose, frame.twist, index)

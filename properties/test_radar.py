@@ -285,16 +285,19 @@ def test_mahalanobis_gate_equals_a_direct_solve(
 def test_weighting_rule_by_lidar_degradation(
     safecase_config: SafecaseConfig, evidence: Any
 ) -> None:
-    """The rule: degradation index d = (isolated share / radar.degraded_noise_fraction) capped
-    at 1; from radar.degraded_from, matched radar positions update their tracks with covariance
-    (R + E) / d. Measured: a track 1 m off the radar's return, how far one update moves it."""
+    """The rule: degradation index d = (share of returns isolated within
+    radar.degraded_within_m / radar.degraded_noise_fraction) capped at 1; from
+    radar.degraded_from, matched radar positions update their tracks with covariance (R + E) / d.
+    Measured: a track 1 m off the radar's return, how far one update moves it."""
     c = safecase_config.radar
     gate = RadarGate.from_config(safecase_config)
     front = RadarFrontEnd(safecase_config)
     rows = []
     moved_by = []
     for isolated in (0.0, 0.02, 0.04, 0.05, 0.10, 0.15, 0.30):
-        d = degradation_index(1000, int(isolated * 1000), c.degraded_noise_fraction)
+        near = np.full(1000, 0.5 * c.degraded_within_m)
+        d = degradation_index(near, np.arange(1000) < int(isolated * 1000),
+                              c.degraded_within_m, c.degraded_noise_fraction)  # fmt: skip
         tracks = make_tracks(0.0, [[10.0, 1.0]], [[0.0, 0.0]], cov_scale=1.0)
         radar = RadarDetections(np.zeros(1), np.array([10.0]), np.zeros(1), np.zeros(1))
         framed = front.in_tracking_frame(radar, np.ones(1, bool), (0.0, 0.0, 0.0), None, d)
@@ -314,3 +317,30 @@ def test_weighting_rule_by_lidar_degradation(
     assert moved_by[0] == 0.0  # a clear LiDAR: the radar's position is not used
     assert all(a <= b for a, b in itertools.pairwise(moved_by))
     assert moved_by[-1] > 0.0
+
+
+@pytest.mark.requirement("SR-FUS-7", kind="property", code=CODE)
+@settings(max_examples=examples(200))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(0, 300),
+    within=st.floats(0.5, 20.0),
+    full=st.floats(0.01, 1.0),
+)
+def test_the_degradation_index_counts_isolated_returns_near_the_scanner_only(
+    seed: int, n: int, within: float, full: float
+) -> None:
+    """d = min(1, #(isolated and nearer than within) / #returns / full), counted one return at a
+    time; moving an isolated return beyond ``within`` never raises it."""
+    rng = np.random.default_rng(seed)
+    range_m = rng.uniform(0.1, 2.0 * within, n)
+    isolated = rng.random(n) < rng.random()
+    counted = sum(1 for r, i in zip(range_m, isolated, strict=True) if i and r < within)
+    want = 0.0 if n == 0 else min(1.0, counted / n / full)
+    got = degradation_index(range_m, isolated, within, full)
+    assert got == pytest.approx(want, rel=1e-12, abs=0.0)
+    far = np.where(isolated, np.maximum(range_m, within), range_m)
+    assert degradation_index(far, isolated, within, full) == 0.0
+    if n:
+        with pytest.raises(ValueError, match="isolated flags"):
+            degradation_index(range_m, isolated[:-1], within, full)

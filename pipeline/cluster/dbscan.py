@@ -33,6 +33,8 @@ from pipeline.config import ClusterSection, SafecaseConfig
 from pipeline.points import scan_to_points
 from pipeline.shape.box import cluster_geometry
 from pipeline.types import (
+    DROPPED_LABEL,
+    NOISE_LABEL,
     BoolArray,
     ClusterCounts,
     Clusters,
@@ -181,11 +183,14 @@ def partition_points(points: ScanPoints, config: ClusterSection) -> Partition:
         chosen = kept[np.argsort(nearest[kept], kind="stable")[: config.max_clusters]]
         n_over_cap = kept.shape[0] - config.max_clusters
         kept = np.sort(chosen)
-    remap = np.full(raw.n_clusters + 1, -1, dtype=np.int64)
+    # Raw label -1 (noise) indexes the extra last entry and stays NOISE_LABEL; every dropped
+    # cluster becomes DROPPED_LABEL (the radar's LiDAR degradation index counts noise alone).
+    remap = np.full(raw.n_clusters + 1, DROPPED_LABEL, dtype=np.int64)
+    remap[-1] = NOISE_LABEL
     remap[kept] = np.arange(kept.shape[0])
     return Partition(
         stamp_s=points.stamp_s,
-        point_labels=remap[raw.labels],  # -1 maps through the extra last entry
+        point_labels=remap[raw.labels],
         n_clusters=int(kept.shape[0]),
         counts=ClusterCounts(
             n_found=raw.n_clusters,

@@ -82,9 +82,10 @@ class RadarSection(Section):
     ``min_height_m`` above the ground (clutter, from the elevation) and returns farther than
     ``ghost_margin_m`` behind a mapped reflector along their ray (multipath ghosts); the rest are
     gated against tracks with the tracker's own Mahalanobis gate. When the LiDAR's degradation
-    index (its share of isolated returns, as a fraction of ``degraded_noise_fraction``, capped at
-    1) reaches ``degraded_from``, radar positions also update the matched tracks, with the
-    radar's covariance divided by the index (radar weighted more as the LiDAR degrades).
+    index (its share of returns that are isolated and nearer than ``degraded_within_m``, as a
+    fraction of ``degraded_noise_fraction``, capped at 1) reaches ``degraded_from``, radar
+    positions also update the matched tracks, with the radar's covariance divided by the index
+    (radar weighted more as the LiDAR degrades).
     """
 
     mount_z_m: float = Field(0.5, gt=0.0, le=10.0)
@@ -95,6 +96,7 @@ class RadarSection(Section):
     min_height_m: float = Field(0.15, ge=-5.0, le=5.0)
     ghost_margin_m: float = Field(0.3, ge=0.0, le=10.0)
     degraded_noise_fraction: float = Field(0.15, gt=0.0, le=1.0)
+    degraded_within_m: float = Field(5.0, gt=0.0, le=100.0)
     degraded_from: float = Field(0.3, gt=0.0, le=1.0)
 
 

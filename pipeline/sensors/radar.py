@@ -26,10 +26,14 @@ with position covariance ``P`` when ``|z - x| <= track.gate_euclidean_m`` and
 gates. Returns and tracks are matched one to one by the Hungarian assignment on ``d^2``.
 
 **Weighting by LiDAR degradation.** The LiDAR's degradation index ``d`` of a scan is its share of
-isolated returns (points in no cluster: fog backscatter, rain clutter) over
-``radar.degraded_noise_fraction``, capped at 1. From ``d >= radar.degraded_from`` the matched
-returns' positions also update their tracks, with covariance ``(R + E) / d``: the radar is
-trusted more the worse the LiDAR sees; below it only their Doppler does.
+isolated returns near the scanner (points in no kept cluster nearer than
+``radar.degraded_within_m``: fog backscatter, rain and spray) over
+``radar.degraded_noise_fraction``, capped at 1. Only near ones count: an open apron in clear air
+leaves 40-50 % of a scan's returns isolated at long range (sparse far structure), none of them
+within 5 m, while fog puts 60-80 % of the returns there (docs/findings/sensors.md). From
+``d >= radar.degraded_from`` the matched returns' positions also update their tracks, with
+covariance ``(R + E) / d``: the radar is trusted more the worse the LiDAR sees; below it only
+their Doppler does.
 """
 
 from __future__ import annotations
@@ -131,12 +135,22 @@ def position_update(
     return x_new, 0.5 * (p_new + np.swapaxes(p_new, 1, 2))
 
 
-def degradation_index(n_valid: int, n_isolated: int, full_fraction: float) -> float:
-    """The LiDAR degradation index of a scan: its share of isolated returns over
-    ``full_fraction``, capped at 1 (0 for a scan without valid returns)."""
-    if n_valid <= 0:
+def degradation_index(
+    range_m: FloatArray, isolated: BoolArray, within_m: float, full_fraction: float
+) -> float:
+    """The LiDAR degradation index of a scan (module docstring): the share of its valid returns
+    (ranges ``range_m`` [m] from the scanner, ``isolated`` in no kept cluster) that are isolated
+    and nearer than ``within_m``, over ``full_fraction``, capped at 1 (0 for a scan without
+    valid returns). SR-FUS-7."""
+    n_valid = int(range_m.shape[0])
+    if isolated.shape != range_m.shape:
+        raise ValueError(
+            f"degradation_index: {isolated.shape[0]} isolated flags for {n_valid} returns"
+        )
+    if n_valid == 0:
         return 0.0
-    return min(1.0, (n_isolated / n_valid) / full_fraction)
+    near = int(np.count_nonzero(isolated & (range_m < within_m)))
+    return min(1.0, (near / n_valid) / full_fraction)
 
 
 @dataclass(frozen=True, slots=True)

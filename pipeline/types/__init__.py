@@ -29,6 +29,8 @@ from pipeline.types.perception import (
     TrackFeatures,
 )
 from pipeline.types.tracking import (
+    DROPPED_LABEL,
+    NOISE_LABEL,
     ClusterCounts,
     Clusters,
     CycleCounts,
@@ -43,6 +45,8 @@ from pipeline.types.tracking import (
 )
 
 __all__ = [
+    "DROPPED_LABEL",
+    "NOISE_LABEL",
     "Action",
     "BoolArray",
     "Classification",

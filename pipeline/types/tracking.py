@@ -10,6 +10,11 @@ import numpy as np
 from pipeline.errors import SafecaseError
 from pipeline.types.core import BoolArray, FloatArray, IntArray, freeze_fields, frozen_array
 
+NOISE_LABEL = -1
+"""A point's cluster label when DBSCAN left it in no cluster (too few neighbours)."""
+DROPPED_LABEL = -2
+"""A point's cluster label when its cluster was dropped by the size filter or the cap."""
+
 
 @dataclass(frozen=True, slots=True)
 class DropCounts:
@@ -87,8 +92,9 @@ class Partition:
     """Which kept cluster each point of one scan belongs to (SR-TRK-2).
 
     ``point_labels`` holds, for every point of the :class:`ScanPoints` it was made from, its
-    kept cluster index in ``0 .. n_clusters - 1`` or -1 (noise, or a cluster dropped by the
-    size filter or the cap); ``counts`` says what was found and discarded.
+    kept cluster index in ``0 .. n_clusters - 1``, :data:`NOISE_LABEL` (-1, in no cluster) or
+    :data:`DROPPED_LABEL` (-2, its cluster dropped by the size filter or the cap); ``counts``
+    says what was found and discarded.
     """
 
     stamp_s: float
@@ -112,10 +118,11 @@ class Clusters:
     area floored at ``cluster.density_min_area_m2``), ``n_points``, and the convex hull:
     counter-clockwise vertices of cluster ``k`` are ``hull_x_m[hull_offsets[k]:hull_offsets[k
     + 1]]`` (one vertex for coincident points, two for collinear ones). ``point_labels`` gives,
-    for every point of the :class:`ScanPoints` the clusters came from, its kept cluster index
-    or -1 (noise, or a cluster dropped by the size filter or the cap). ``end_x_m`` and
-    ``end_y_m`` (n, 2) are the cluster's first and last point in the counter-clockwise sweep
-    (column 0 where the sweep enters the cluster); ``end_occluded`` (n, 2) says whether the
+    for every point of the :class:`ScanPoints` the clusters came from, its kept cluster index,
+    -1 (noise) or -2 (a cluster dropped by the size filter or the cap), as in
+    :class:`Partition`. ``end_x_m`` and ``end_y_m`` (n, 2) are the cluster's first and last
+    point in the counter-clockwise sweep (column 0 where the sweep enters the cluster);
+    ``end_occluded`` (n, 2) says whether the
     beam next to that end returned a point nearer than it (:mod:`pipeline.shape.ends`): the
     object may go on behind.
     """

@@ -17,7 +17,7 @@ from pipeline.sensors.radar_counts import RadarFusionCounts
 from pipeline.sources.sim.sensors_source import sensors_beside
 from pipeline.sources.sim.weather import WEATHER_PRESETS
 from pipeline.sources.sim.weather_scenarios import weather_simulation
-from pipeline.types import Action, Frame, FusionCounts
+from pipeline.types import NOISE_LABEL, Action, Frame, FusionCounts
 from safety.model.freshness import is_fresh
 from safety.run import cycle_input
 from safety.runtime import Runtime
@@ -54,8 +54,12 @@ def test_a_moving_robots_radar_updates_its_track_with_the_compensated_doppler(
             continue
         # The chain's fusion is the front-end's own numbers fused with the radar gate.
         kept, _ = front.filter(frame.radar, frame.pose, None)
+        section = CONFIG.radar
         index = degradation_index(
-            p.points.n, p.clusters.counts.n_noise_points, CONFIG.radar.degraded_noise_fraction
+            p.points.range_m,
+            p.clusters.point_labels == NOISE_LABEL,
+            section.degraded_within_m,
+            section.degraded_noise_fraction,
         )
         framed = front.in_tracking_frame(frame.radar, kept, frame.pose, frame.twist, index)
         # The cycle's fusion counts carry the front-end's account and the degradation index.
