@@ -17,7 +17,9 @@ detections move with the same pose. Radar returns go through the radar's front-e
 (:class:`pipeline.sensors.radar.RadarFrontEnd`, SR-FUS-7, SR-FUS-9): its filters (no reflector
 map), its ego-motion compensation with the frame's pose and twist, and the position weight of the
 scan's LiDAR degradation index (its share of isolated returns near the scanner); fusion then
-gates them with the tracker's own gates (:class:`pipeline.sensors.radar.RadarGate`). A moving
+gates them with the tracker's own gates (:class:`pipeline.sensors.radar.RadarGate`), and the
+radar-refined states of the matched tracks go back into the tracker's filter
+(``radar.write_back``). A moving
 robot without a twist cannot compensate the Doppler: the frame is refused (the runtime STOPs
 naming the fusion stage).
 
@@ -369,7 +371,17 @@ class Perception:
         fused = self.fusion.fuse(now, tracked.tracks, classification.confidence, thermal, radar)
         weight = radar.position_weight
         given = 0.0 if weight is None or weight.shape[0] == 0 else float(weight[0])
-        return replace(fused, counts=RadarFusionCounts.of(fused.counts, front, index, given))
+        written = 0
+        assert self.radar is not None  # _radar checked
+        if self.radar.section.write_back:
+            # The radar updated these tracks at the scan's stamp: the filter keeps the result.
+            matched = fused.radar_index >= 0
+            t = fused.tracks
+            written = self.tracker.correct(
+                t.track_id[matched], t.state[matched], t.covariance[matched]
+            )
+        counts = RadarFusionCounts.of(fused.counts, front, index, given, written)
+        return replace(fused, counts=counts)
 
     def _radar(self, tracked: Tracked) -> tuple[RadarDetections, RadarCounts, float]:
         """The frame's radar returns through the front-end (module docstring): the kept ones in

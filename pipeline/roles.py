@@ -98,13 +98,17 @@ class SoftAssociator(Associator, Protocol):
 class TrackerRole(Protocol):
     """Detections of one scan in, the tracks after that scan out (stamped, in order).
 
-    ``last_counts`` is the account of the last step; :meth:`reset` forgets every track.
+    ``last_counts`` is the account of the last step; :meth:`correct` replaces the filtered
+    state of live tracks by one another sensor refined at the last step's stamp and returns how
+    many it wrote; :meth:`reset` forgets every track.
     """
 
     @property
     def last_counts(self) -> CycleCounts | None: ...
 
     def step(self, detections: Detections) -> Tracks: ...
+
+    def correct(self, track_id: IntArray, state: FloatArray, covariance: FloatArray) -> int: ...
 
     def reset(self) -> None: ...
 

@@ -85,7 +85,9 @@ class RadarSection(Section):
     index (its share of returns that are isolated and nearer than ``degraded_within_m``, as a
     fraction of ``degraded_noise_fraction``, capped at 1) reaches ``degraded_from``, radar
     positions also update the matched tracks, with the radar's covariance divided by the index
-    (radar weighted more as the LiDAR degrades).
+    (radar weighted more as the LiDAR degrades). With ``write_back`` the radar-refined state and
+    covariance of every matched track go back into the tracker's filter, so that the radar's
+    information persists into the next prediction instead of serving one cycle only.
     """
 
     mount_z_m: float = Field(0.5, gt=0.0, le=10.0)
@@ -97,6 +99,7 @@ class RadarSection(Section):
     ghost_margin_m: float = Field(0.3, ge=0.0, le=10.0)
     degraded_noise_fraction: float = Field(0.15, gt=0.0, le=1.0)
     degraded_within_m: float = Field(5.0, gt=0.0, le=100.0)
+    write_back: bool = True
     degraded_from: float = Field(0.3, gt=0.0, le=1.0)
 
 

@@ -22,8 +22,9 @@ class RadarFusionCounts(FusionCounts):
     that the audit log says what became of every raw return: each of ``n_radar_returns`` is
     dropped by the front-end (``n_radar_dropped_invalid``, ``n_radar_low_rcs``,
     ``n_radar_low_snr``, ``n_radar_clutter``, ``n_radar_ghost``) or kept, and the kept ones are
-    fusion's ``n_radar``; with the scan's LiDAR degradation index and the position weight the
-    front-end gave the kept returns (0: their Doppler only, or none kept)."""
+    fusion's ``n_radar``; with the scan's LiDAR degradation index, the position weight the
+    front-end gave the kept returns (0: their Doppler only, or none kept) and how many radar-
+    refined tracks were written back into the tracker's filter (``radar.write_back``)."""
 
     n_radar_returns: int = 0
     n_radar_dropped_invalid: int = 0
@@ -33,6 +34,7 @@ class RadarFusionCounts(FusionCounts):
     n_radar_ghost: int = 0
     radar_degradation: float = 0.0
     radar_position_weight: float = 0.0
+    n_radar_written_back: int = 0
 
     def __post_init__(self) -> None:
         FusionCounts.__post_init__(self)  # slots: no zero-argument super()
@@ -40,6 +42,11 @@ class RadarFusionCounts(FusionCounts):
             self.n_radar_dropped_invalid, self.n_radar_low_rcs, self.n_radar_low_snr,
             self.n_radar_clutter, self.n_radar_ghost,
         )  # fmt: skip
+        if not 0 <= self.n_radar_written_back <= self.n_radar_matched:
+            raise ValueError(
+                f"RadarFusionCounts: {self.n_radar_written_back} written back of "
+                f"{self.n_radar_matched} matched"
+            )
         if min(dropped) < 0 or sum(dropped) + self.n_radar != self.n_radar_returns:
             raise ValueError(
                 f"RadarFusionCounts: dropped {dropped} and kept {self.n_radar} must sum to "
@@ -48,9 +55,13 @@ class RadarFusionCounts(FusionCounts):
 
     @staticmethod
     def of(
-        counts: FusionCounts, front: RadarCounts, degradation: float, weight: float
+        counts: FusionCounts,
+        front: RadarCounts,
+        degradation: float,
+        weight: float,
+        written_back: int = 0,
     ) -> RadarFusionCounts:
-        """``counts`` with the front-end's ``front`` counts, index and weight."""
+        """``counts`` with the front-end's ``front`` counts, index, weight and write-backs."""
         return RadarFusionCounts(
             **{f.name: getattr(counts, f.name) for f in fields(FusionCounts)},
             n_radar_returns=front.n_returns,
@@ -61,4 +72,5 @@ class RadarFusionCounts(FusionCounts):
             n_radar_ghost=front.n_ghost,
             radar_degradation=degradation,
             radar_position_weight=weight,
+            n_radar_written_back=written_back,
         )

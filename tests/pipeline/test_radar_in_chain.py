@@ -17,6 +17,7 @@ from pipeline.sensors.radar_counts import RadarFusionCounts
 from pipeline.sources.sim.sensors_source import sensors_beside
 from pipeline.sources.sim.weather import WEATHER_PRESETS
 from pipeline.sources.sim.weather_scenarios import weather_simulation
+from pipeline.track.tracker import Tracker
 from pipeline.types import NOISE_LABEL, Action, Frame, FusionCounts
 from safety.model.freshness import is_fresh
 from safety.run import cycle_input
@@ -148,3 +149,30 @@ def test_the_radar_account_must_add_up() -> None:
     assert (counts.n_radar_returns, counts.n_radar_clutter, counts.n_radar_matched) == (5, 2, 1)
     with pytest.raises(ValueError, match="must sum to 6"):
         RadarFusionCounts(n_radar=2, n_radar_matched=2, n_radar_returns=6, n_radar_low_rcs=3)
+
+
+@pytest.mark.requirement("SR-FUS-9", kind="example", code=[*CODE, "pipeline/track/tracker.py"])
+@pytest.mark.parametrize("write_back", [True, False])
+def test_the_radar_refined_state_persists_in_the_tracker(write_back: bool) -> None:
+    """With ``radar.write_back`` every radar-matched track's fused state is the tracker's own
+    state after the cycle (and so the next prediction's start); without it the tracker keeps
+    the LiDAR-only state."""
+    config = overridden(CONFIG, {"radar": {"write_back": write_back}})
+    chain = Perception.from_config(config, guard=is_fresh)
+    written = 0
+    for frame in _frames(25):
+        p = chain.perceive(frame)
+        counts = p.fused.counts
+        assert isinstance(counts, RadarFusionCounts)
+        assert isinstance(chain.tracker, Tracker)
+        kept = chain.tracker.snapshot()
+        row = {int(i): k for k, i in enumerate(kept.track_id)}
+        matched = np.flatnonzero(p.fused.radar_index >= 0)
+        assert counts.n_radar_written_back == (matched.shape[0] if write_back else 0)
+        for m in matched:
+            k = row[int(p.fused.tracks.track_id[m])]
+            source = p.fused.tracks if write_back else p.tracked.tracks
+            np.testing.assert_array_equal(kept.state[k], source.state[m])
+            np.testing.assert_array_equal(kept.covariance[k], source.covariance[m])
+            written += 1
+    assert written >= 5, written

@@ -179,3 +179,54 @@ def test_metrics_count_an_id_switch_and_a_fragmentation() -> None:
     assert (q.id_switches, q.fragmentations, q.n_misses, q.n_false_positives) == (1, 1, 1, 0)
     assert q.mota == pytest.approx(0.5)
     assert gospa(np.zeros((1, 2)), np.zeros((0, 2)), 2.0, 2.0)[0] == pytest.approx(2.0**0.5)
+
+
+@pytest.mark.requirement("SR-FUS-9", kind="example", code=["pipeline/track/tracker.py"])
+def test_correct_writes_live_tracks_only_and_the_next_prediction_starts_from_it() -> None:
+    """Another sensor's refinement replaces a live track's filtered state; dormant and unknown
+    IDs are left alone; the next step predicts from the refined state."""
+    tr = Tracker(default_config().track)
+    t = 0.0
+    for k in range(6):  # two objects; the second stops being seen after three scans
+        t = 0.1 * k
+        xy = [(2.0 + t, 1.0)] + ([(6.0, -2.0)] if k < 3 else [])
+        tracks = tr.step(_det(t, xy))
+    status = dict(zip(tracks.track_id.tolist(), tracks.status.tolist(), strict=True))
+    seen, unseen = (int(i) for i in tracks.track_id)
+    assert status[seen] == TrackStatus.CONFIRMED
+    before = tr.snapshot()
+    refined = before.state.copy()
+    refined[:, 2:] = [[5.0, 0.0], [0.0, 5.0]]
+    cov = before.covariance * 0.5
+    unknown = max(seen, unseen) + 100
+    ids = np.array([seen, unseen, unknown])
+    state3 = np.vstack([refined, refined[:1]])
+    cov3 = np.concatenate([cov, cov[:1]])
+    live_unseen = status[unseen] != TrackStatus.DORMANT
+    written = tr.correct(ids, state3, cov3)
+    assert written == 1 + int(live_unseen)
+    after = tr.snapshot()
+    row = {int(i): r for r, i in enumerate(after.track_id)}
+    np.testing.assert_array_equal(after.state[row[seen]], refined[0])
+    np.testing.assert_array_equal(after.covariance[row[seen]], cov[0])
+    # The next step predicts from the refined velocity (5 m/s along x over 0.1 s).
+    nxt = tr.step(_det(t + 0.1, []))
+    r = {int(i): k for k, i in enumerate(nxt.track_id)}[seen]
+    assert nxt.state[r, 0] == pytest.approx(refined[0, 0] + 0.5, abs=1e-9)
+
+
+@pytest.mark.requirement("SR-FUS-9", kind="example", code=["pipeline/track/tracker.py"])
+def test_correct_leaves_a_dormant_track_alone() -> None:
+    tr = Tracker(_reid_on())  # without re-identification a lost track is deleted, not dormant
+    for k in range(4):
+        tr.step(_det(0.1 * k, [(2.0, 1.0)]))
+    k = 4
+    while True:  # unseen until dormant
+        tracks = tr.step(_det(0.1 * k, []))
+        k += 1
+        if tracks.n and tracks.status[0] == TrackStatus.DORMANT:
+            break
+        assert k < 50
+    before = tr.snapshot()
+    assert tr.correct(before.track_id, before.state + 1.0, before.covariance) == 0
+    np.testing.assert_array_equal(tr.snapshot().state, before.state)
