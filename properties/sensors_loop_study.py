@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.config import SafecaseConfig, default_config, overridden
+from pipeline.config import SafecaseConfig, load_config, overridden
 from pipeline.sensors.radar import RadarFrontEnd
 from pipeline.sources.sim.sensors_source import SensorsSource, sensors_beside
 from pipeline.sources.sim.simulation import BOUNDED
@@ -353,8 +353,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--weather", default="clear")
     parser.add_argument("--walker-weather", nargs="*", default=["night", "night_fog"])
+    parser.add_argument("--config", help="TOML file overriding the built-in configuration")
     args = parser.parse_args()
-    base = default_config()
+    base = load_config(args.config)
     runs = [
         reversal_run(base, s, radar, args.weather)
         for s in range(args.seeds)
