@@ -347,7 +347,9 @@ class Perception:
                 fused = self._fuse(tracked, classification, now_s)
             with watch.stage("predict"):
                 boosted = replace(classification, confidence=fused.confidence)
-                predictions = self.predictor.predict(fused.tracks, tracked.features, boosted)
+                predictions = self.predictor.predict(
+                    fused.tracks, tracked.features, boosted, tracked.headings
+                )
         except Exception as exc:
             partial = Partial(tracked.points, tracked.clusters, tracked.counts, fused)
             raise StageError(watch.current, exc, partial) from exc

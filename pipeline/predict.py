@@ -21,6 +21,14 @@ features, over the horizon ``H`` (``predict.horizon_s``, 1.5 s):
   ``h``; REVERSE, that sector plus (Minkowski sum) the sector of radius ``r H`` about ``-h``
   (``r`` = ``predict.reversal_speed_mps``, 0.6 m/s): carry on forwards, stop, back up at most
   at ``r``. With ``h`` unknown both become discs;
+* **along the body axis** (``predict.heading_source = "track"``, :mod:`pipeline.predict_axis`):
+  a vehicle whose motion gives no direction (a cone row whose half-angle reaches 90 deg, a
+  near-reversal row whose confirmed heading is unknown) that has a track heading ``a``
+  (:class:`~pipeline.track.heading.TrackHeadings`) and cannot be a person is predicted along
+  its body axis either way instead of in a disc: a cone row and STOP, the hull of the sectors of
+  radius ``s H`` and half-angle ``cone`` about ``a`` and ``a + pi``; REVERSE, that hull plus
+  (Minkowski sum) the hull of the sectors of radius ``r H`` about both (a reversal either way).
+  ``heading_rad`` is then ``a``, one of the axis's two directions;
 * **stationary and static** classes (stationary forklift, cart, static structure): the
   footprint, i.e. the reference point itself;
 * **unscored or low confidence** (confidence below ``classify.medium_confidence_min``): any
@@ -47,6 +55,8 @@ from pipeline.classify.model import FORKLIFT_CLASSES, NEAR_REVERSAL_CLASS, STILL
 from pipeline.config import PredictSection
 from pipeline.constructive import minkowski, sector_points
 from pipeline.features import feature_index
+from pipeline.predict_axis import axis_points, body_axes
+from pipeline.roles import HeadingRows
 from pipeline.track.kalman import largest_std
 from pipeline.types import (
     BoolArray,
@@ -168,18 +178,23 @@ def predict(
     classification: Classification,
     section: PredictSection,
     medium_confidence_min: float,
+    headings: HeadingRows | None = None,
 ) -> Predictions:
-    """Prediction rows for every non-dormant track (module docstring; SR-PRED-1).
+    """Prediction rows for every non-dormant track (module docstring; SR-PRED-1, SR-PRED-4).
 
-    ``features`` and ``classification`` must come from ``tracks`` (same rows, same order);
-    ``medium_confidence_min`` (``classify.medium_confidence_min``) is the confidence below
-    which a track's class is not trusted and it is predicted as unknown.
+    ``features``, ``classification`` and ``headings`` (when given) must come from ``tracks``
+    (same rows, same order); ``medium_confidence_min`` (``classify.medium_confidence_min``) is
+    the confidence below which a track's class is not trusted and it is predicted as unknown.
+    ``headings`` orient vehicles along their body axis under ``heading_source = "track"``.
     """
     if not (
         np.array_equal(features.track_id, tracks.track_id)
         and np.array_equal(classification.track_id, tracks.track_id)
+        and (headings is None or np.array_equal(headings.track_id, tracks.track_id))
     ):
-        raise ValueError("predict: tracks, features and classification must list the same tracks")
+        raise ValueError(
+            "predict: tracks, features, classification and headings must list the same tracks"
+        )
     pc = section
     horizon, k = pc.horizon_s, pc.velocity_sigmas
     live = tracks.status != int(TrackStatus.DORMANT)
@@ -197,12 +212,14 @@ def predict(
     near, footprint, cone, unknown = track_modes(classification, flagged, medium_confidence_min)
 
     heading_v = np.arctan2(vy, vx)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         spread = np.where(
             speed > k * sigma_v, np.arcsin(np.minimum(k * sigma_v / speed, 1.0)), np.pi
         )
     cone_half = math.radians(pc.cone_half_angle_deg)
     confirmed = confirmed_heading_rad(tracks, speed, sigma_v, pc)
+    compatible = person_compatible(features, pc)
+    axes = body_axes(headings, compatible, pc)
 
     # One entry per (track, mode); near-reversal tracks get two.
     parts: list[tuple[BoolArray, PredictionMode]] = [
@@ -231,6 +248,11 @@ def predict(
     half = np.where(
         is_mode[PredictionMode.CONE], cone_half + spread[rows], np.where(two_mode, cone_half, np.pi)
     )
+    # Rows whose motion gives no direction and whose body axis is used instead.
+    axis = np.isfinite(axes[rows]) & (
+        (is_mode[PredictionMode.CONE] & (half >= 0.5 * math.pi)) | (two_mode & np.isnan(heading))
+    )
+    heading[axis] = axes[rows][axis]
     # The operating domain's speed limit bounds every object, however unsure its filter is
     # (a new track's velocity variance alone would reach several metres per second); an
     # unknown track may also be starting a reversal, so it keeps that on top.
@@ -239,22 +261,35 @@ def predict(
     reach_speed[is_mode[PredictionMode.UNKNOWN]] += pc.reversal_speed_mps
     main = sector_points(x, y, heading, half, reach_speed * horizon, arc, sides)
     reverse = is_mode[PredictionMode.REVERSE]
-    reach = main
-    if reverse.any():
-        r = int(reverse.sum())
+    back_m = pc.reversal_speed_mps * horizon
+    regions: list[tuple[BoolArray, FloatArray]] = []
+    plain = reverse & ~axis
+    if plain.any():
+        r = int(plain.sum())
         back = sector_points(
             np.zeros(r),
             np.zeros(r),
-            heading[reverse] + math.pi,
+            heading[plain] + math.pi,
             np.full(r, cone_half),
-            np.full(r, pc.reversal_speed_mps * horizon),
+            np.full(r, back_m),
             arc,
             sides,
         )
-        summed = minkowski(main[reverse], back)
-        reach = np.repeat(main[:, :1], summed.shape[1], axis=1)
-        reach[:, : main.shape[1]] = main
-        reach[reverse] = summed
+        regions.append((plain, minkowski(main[plain], back)))
+    if axis.any():
+        along = axis_points(
+            x[axis], y[axis], heading[axis], cone_half, reach_speed[axis] * horizon, arc, sides
+        )
+        both = reverse[axis]
+        regions.append((axis & ~reverse, along[~both]))
+        if both.any():
+            r = int(both.sum())
+            zero = np.zeros(r)
+            either = axis_points(
+                zero, zero, heading[axis][both], cone_half, np.full(r, back_m), arc, sides
+            )
+            regions.append((axis & reverse, minkowski(along[both], either)))
+    reach = _overlay(main, regions)
     return Predictions(
         stamp_s=tracks.stamp_s,
         horizon_s=horizon,
@@ -263,12 +298,27 @@ def predict(
         class_index=classification.class_index[rows],
         confidence=confidence[rows],
         near_reversal=two_mode,
-        person_compatible=person_compatible(features, pc)[rows],
+        person_compatible=compatible[rows],
         speed_mps=np.where(reverse, np.maximum(reach_speed, pc.reversal_speed_mps), reach_speed),
         heading_rad=heading,
         body_radius_m=body[rows],
         reach_xy_m=reach,
     )
+
+
+def _overlay(base: FloatArray, regions: list[tuple[BoolArray, FloatArray]]) -> FloatArray:
+    """``base`` (M, P, 2) with the rows of each mask replaced by its polygons, every row padded
+    to the widest by repeating its first vertex (a repeated vertex leaves a polygon as it is)."""
+    if not regions:
+        return base
+    width = max([base.shape[1]] + [poly.shape[1] for _, poly in regions])
+    out = np.repeat(base[:, :1], width, axis=1)
+    out[:, : base.shape[1]] = base
+    for mask, poly in regions:
+        out[mask] = np.concatenate(
+            [poly, np.repeat(poly[:, :1], width - poly.shape[1], axis=1)], axis=1
+        )
+    return out
 
 
 @dataclass(frozen=True)
@@ -280,7 +330,18 @@ class KinematicPredictor:
     medium_confidence_min: float
 
     def predict(
-        self, tracks: Tracks, features: TrackFeatures, classification: Classification
+        self,
+        tracks: Tracks,
+        features: TrackFeatures,
+        classification: Classification,
+        headings: HeadingRows | None = None,
     ) -> Predictions:
         """Prediction rows for every non-dormant track."""
-        return predict(tracks, features, classification, self.config, self.medium_confidence_min)
+        return predict(
+            tracks,
+            features,
+            classification,
+            self.config,
+            self.medium_confidence_min,
+            headings,
+        )

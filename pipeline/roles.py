@@ -42,6 +42,7 @@ __all__ = [
     "FeatureExtractor",
     "FreshnessGuard",
     "Fusion",
+    "HeadingRows",
     "Predictor",
     "ScanFilter",
     "ShapeEstimator",
@@ -152,9 +153,26 @@ class Fusion(Protocol):
     ) -> FusedTracks: ...
 
 
+class HeadingRows(Protocol):
+    """Each track's heading [rad] in the tracking frame, NaN when unknown, one row per track
+    (:class:`pipeline.track.heading.TrackHeadings`; named by shape here because the tracker
+    imports the roles)."""
+
+    @property
+    def track_id(self) -> IntArray: ...
+
+    @property
+    def heading_rad(self) -> FloatArray: ...
+
+
 class Predictor(Protocol):
-    """Where each track may be within the horizon: prediction rows, one or two per track."""
+    """Where each track may be within the horizon: prediction rows, one or two per track
+    (``headings``, when the tracker keeps them, have the tracks' rows)."""
 
     def predict(
-        self, tracks: Tracks, features: TrackFeatures, classification: Classification
+        self,
+        tracks: Tracks,
+        features: TrackFeatures,
+        classification: Classification,
+        headings: HeadingRows | None = None,
     ) -> Predictions: ...

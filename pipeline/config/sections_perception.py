@@ -235,6 +235,10 @@ class PredictSection(Section):
     confirmed track is seen faster). ``step_s`` samples the horizon where a finite set of times is
     needed (evaluation). A track whose cluster's box is at most ``person_max_extent_m`` long and
     wide may be a person whatever its class (:func:`pipeline.predict.person_compatible`, SR-CLS-8).
+    ``heading_source`` says what orients a vehicle whose motion gives no direction (a slow cone
+    whose spread reaches 90 deg, a near-reversal track without a confirmed heading): "motion"
+    leaves it a disc; "track" predicts it along its track heading's body axis, both ways, when
+    the track has a heading and cannot be a person (:mod:`pipeline.predict_axis`, SR-PRED-4).
     """
 
     horizon_s: float = Field(1.5, gt=0.0, le=10.0)
@@ -251,6 +255,7 @@ class PredictSection(Section):
     disc_sides: int = Field(12, ge=6, le=64)
     heading_min_travel_m: float = Field(0.3, ge=0.0, le=10.0)
     person_max_extent_m: float = Field(1.0, gt=0.0, le=5.0)
+    heading_source: Literal["motion", "track"] = "motion"
 
 
 class FusionSection(Section):
