@@ -106,7 +106,8 @@ class Predictions:
     in ``[0, horizon_s]``. ``body_radius_m`` (M,) is the radius
     of a disc about the reference point that holds the object's body, so the region grown by
     it holds the whole object. ``speed_mps`` is the speed bound the region was built with and
-    ``heading_rad`` the direction it was built around (NaN when none: a disc).
+    ``heading_rad`` the direction it was built around (NaN when none: a disc; on a row built
+    along a body axis either way, one of the axis's two directions, :mod:`pipeline.predict_axis`).
     ``person_compatible``: nothing seen of the track excludes a person (its box is not larger
     than a person can be; :func:`pipeline.predict.person_compatible`, SR-CLS-8).
     ``safety.geometry.envelopes`` turns rows into polygons.
