@@ -40,6 +40,8 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/monitors.py",
     "safety/model/decision.py",
     "safety/model/braking.py",
+    "safety/model/caution.py",
+    "safety/model/second_scanner.py",
     "safety/geometry/contact.py",
     "safety/geometry/costmap.py",
     "safety/geometry/envelopes.py",
