@@ -13,11 +13,12 @@ PYTEST_ARGS ?=
 # uv resolves one lock for all supported Pythons (environment markers); only `make lock` uses it
 UV_VERSION := 0.13.9
 
-.PHONY: all test certify lint typecheck pytest venv lock clean help mutation test-all-pythons \
+.PHONY: all test certify certify-full lint typecheck pytest venv lock clean help mutation test-all-pythons \
 	acoustic-oracle
 
 help:
 	@echo "make certify   run the whole certification suite, write out/certification/<stamp>/"
+	@echo "make certify-full  the same with the long campaigns at full size (over an hour)"
 	@echo "make test      ruff + import-linter + mypy --strict + pytest (ci profile), evidence in $(TEST_OUT)/"
 	@echo "make lock      re-resolve requirements.lock (Python 3.10-3.12) from pyproject.toml (network)"
 	@echo "make test-all-pythons  make test on Python 3.10, 3.11, 3.12 (nox; venvs in .nox/)"
@@ -42,6 +43,10 @@ venv: $(STAMP)
 
 certify: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/safecase certify $(if $(CONFIG),--config $(CONFIG))
+
+# certify with the long campaigns at full size (docs/findings/README.md): over an hour on 2 cores
+certify-full: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/safecase certify --profile certify-full $(if $(CONFIG),--config $(CONFIG))
 
 lint: $(STAMP)
 	$(BIN)/ruff check pipeline safety properties evidence tests

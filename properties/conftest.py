@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import active_profile, certifying
 from pipeline.config import load_config
 from properties import beside
 from properties.soak import SOAK_FILE, soak_calls
 
 
 def _certify_soak(items: list[pytest.Item]) -> bool:
-    return active_profile() == "certify" and any(i.path.name == SOAK_FILE for i in items)
+    return certifying() and any(i.path.name == SOAK_FILE for i in items)
 
 
 @pytest.hookimpl(trylast=True)

@@ -20,7 +20,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import active_profile, by_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig, overridden
@@ -53,10 +53,11 @@ NAMED = (
 
 
 def _runs() -> list[tuple[str, int, float]]:
-    if active_profile() == "certify":
+    if certifying():
+        seeds, randoms = by_profile(ci=(0, 0), certify=(2, 4), full=(3, 6))
         return [
-            *((n, seed, 15.0) for n in NAMED for seed in range(3)),
-            *(("random_encounter", seed, 15.0) for seed in range(100, 106)),
+            *((n, seed, 15.0) for n in NAMED for seed in range(seeds)),
+            *(("random_encounter", seed, 15.0) for seed in range(100, 100 + randoms)),
         ]
     return [(n, 0, 10.0) for n in ("reversing_forklift_aisle", "pallet_jack_slow")]
 
@@ -71,7 +72,7 @@ def classifier(safecase_config: SafecaseConfig) -> Classifier:
 def campaign(safecase_config: SafecaseConfig, classifier: Classifier) -> Campaign:
     """Ours, the oracle and the baseline on every run of :func:`_runs` (under ``certify`` on a
     LocalCluster of two worker processes: the same figures, in half the time)."""
-    workers = 2 if active_profile() == "certify" else 1
+    workers = 2 if certifying() else 1
     return compare_all(safecase_config, _runs(), workers=workers, classifier=classifier)
 
 
@@ -184,8 +185,9 @@ def test_each_lever_measured_before_and_after(
         "re-identification on": (Levers(), reid),
     }
     chosen = campaign.comparisons[:1]
-    if active_profile() == "certify":
-        chosen = [c for c in campaign.comparisons if c.seed == 0]
+    if certifying():
+        named = by_profile(ci=NAMED, certify=NAMED[:3], full=NAMED)
+        chosen = [c for c in campaign.comparisons if c.seed == 0 and c.name in named]
         settings_ = {
             "directed closing off": (Levers(directed_closing=False), config),
             "outline bodies off": (Levers(outline_bodies=False), config),
@@ -325,7 +327,7 @@ def test_every_return_lies_in_its_outline_body(
     """Rows of unknown motion seen this cycle (new clusters, unconfirmed tracks): every scan
     point of the cluster that updated the track lies in the body the governor reads."""
     config = safecase_config
-    seconds = 12.0 if active_profile() == "certify" else 4.0
+    seconds = 12.0 if certifying() else 4.0
     chain = Perception.from_config(config, classifier=classifier, guard=is_fresh)
     checked = 0
     for name in ("occlusion_behind_cart", "reversing_forklift_aisle"):

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import examples
+from evidence.profiles import certifying, examples
 from evidence.record import Recorder, current
 from pipeline.classify.model import Classifier, ModelHashError, card_path, file_sha256
 from pipeline.config import SafecaseConfig, overridden
@@ -438,7 +438,6 @@ def test_inference_speed_ratio(
     classifier: Classifier, oracle: object, twenty_tracks: FloatArray, evidence: Recorder
 ) -> None:
     """Interleaved timing of the three paths in one loop (load hits them alike)."""
-    from evidence.profiles import active_profile
     from evidence.timing import compare
 
     timings = compare(
@@ -448,7 +447,7 @@ def test_inference_speed_ratio(
             "xgboost predict(DMatrix)": lambda: xgboost_probabilities(oracle, twenty_tracks),
         },
         reference="xgboost inplace_predict",
-        rounds=2000 if active_profile() == "certify" else 300,
+        rounds=2000 if certifying() else 300,
         title="classifier, 20 tracks",
     )
     ours = timings["ours (leaf bitmasks, numpy)"]

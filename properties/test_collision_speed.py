@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import shapely
 
-from evidence.profiles import active_profile
+from evidence.profiles import certifying
 from evidence.record import Recorder
 from evidence.timing import compare
 from pipeline.types import BoolArray, ConvexPolygons
@@ -141,7 +141,7 @@ def random_candidates(a: ConvexPolygons, b: ConvexPolygons) -> dict[str, Callabl
 
 def _report(evidence: Recorder, title: str, fns: dict[str, Callable[[], BoolArray]]) -> None:
     """Interleaved timing of all candidates; ratios vs FCL and vs shapely's fastest."""
-    rounds = 200 if active_profile() == "certify" else 40
+    rounds = 200 if certifying() else 40
     timings = compare(
         fns, reference="FCL pair by pair", rounds=rounds, title=title, target_s=TARGET_S
     )

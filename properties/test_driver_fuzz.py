@@ -3,10 +3,11 @@
 One seeded campaign per protocol (RPLIDAR standard nodes, RPLIDAR express capsules, SCIP 2.0
 MD/GD): single-frame mutations (bit flip, truncation, dropped, duplicated and swapped frames,
 garbage) of clean device streams, decoded by the driver's stream decoders, every emitted beam
-judged against what was encoded (:mod:`properties.fuzz_campaign`). ``certify`` runs
-:data:`CERTIFY_MUTATIONS` mutated frames per protocol, ``ci`` :data:`CI_MUTATIONS`.
+judged against what was encoded (:mod:`properties.fuzz_campaign`). ``certify-full`` runs
+:data:`FULL_MUTATIONS` mutated frames per protocol, ``certify`` :data:`CERTIFY_MUTATIONS`,
+``ci`` :data:`CI_MUTATIONS`.
 Reproduce: ``MPLBACKEND=Agg .venv/bin/python -m pytest -q -p no:cacheprovider
---hypothesis-profile=certify properties/test_driver_fuzz.py``.
+--hypothesis-profile=certify-full properties/test_driver_fuzz.py``.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import time
 
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import active_profile, by_profile
 from evidence.record import Recorder
 from pipeline.sources.serial.rplidar_stream import RplidarStream
 from properties.fuzz_campaign import SILENT_LOSS, UNDETECTABLE, ClassFigures, run_sharded
@@ -35,7 +36,8 @@ CODE = [
     "pipeline/sources/serial/rplidar_capsule.py",
     "pipeline/sources/serial/scip.py",
 ]
-CERTIFY_MUTATIONS = 1_000_000  # mutated frames per protocol
+FULL_MUTATIONS = 1_000_000  # mutated frames per protocol
+CERTIFY_MUTATIONS = 250_000
 CI_MUTATIONS = 6_000
 SHARDS = 8  # independent seeded sub-campaigns: the figures depend on this, not on WORKERS
 WORKERS = max(1, min(SHARDS, os.cpu_count() or 1))
@@ -117,7 +119,7 @@ def _limits(protocol: Protocol, figures: dict[str, ClassFigures]) -> str:
 def test_fuzz_campaign_emits_no_beam_the_protocol_could_reject(
     protocol: Protocol, evidence: Recorder
 ) -> None:
-    total = CERTIFY_MUTATIONS if active_profile() == "certify" else CI_MUTATIONS
+    total = by_profile(ci=CI_MUTATIONS, certify=CERTIFY_MUTATIONS, full=FULL_MUTATIONS)
     started = time.perf_counter()
     figures = run_sharded(
         protocol, -(-total // len(MUTATIONS)), SEEDS[protocol], shards=SHARDS, workers=WORKERS

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import run_state_machine_as_test
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import certifying, examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig, TrackSection, default_config, overridden
 from pipeline.track import kalman
@@ -210,7 +210,7 @@ def test_jpda_against_hungarian_on_ray_cast_scenarios(
     """The same ray-cast frames tracked with the Hungarian cascade and with JPDA where gates
     overlap: dolly trains with gaps under 0.5 m, adjacent containers, a crowd of walkers and
     clutter. CLEAR-MOT counts are checked against py-motmetrics on every run."""
-    certify = active_profile() == "certify"
+    certify = certifying()
     seeds = range(10) if certify else range(1)
     duration = 20.0 if certify else 8.0
     base = overridden(safecase_config, {"track": {"association": "hungarian"}})

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import certifying, examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig, default_config, overridden
 from pipeline.shape.box import cluster_shapes
@@ -167,8 +167,8 @@ def test_heading_error_by_view_and_range_on_ray_cast_scans(
     box and the L-shape fit per cluster, by view and range; the track headings. Targets: the
     L-shape's median orientation error on two faces below the 2 deg published for the method,
     its 95th percentile below the source's 5 deg."""
-    seeds = range(40) if active_profile() == "certify" else range(3)
-    duration = 10.0 if active_profile() == "certify" else 6.0
+    seeds = range(40) if certifying() else range(3)
+    duration = 10.0 if certifying() else 6.0
     samples = HeadingSamples()
     for seed in seeds:
         heading_samples(

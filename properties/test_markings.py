@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sklearn.linear_model import LinearRegression, RANSACRegressor
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import certifying, examples
 from evidence.record import current
 from pipeline.config import SafecaseConfig, overridden
 from pipeline.errors import ConfigError
@@ -377,7 +377,7 @@ def test_without_the_incidence_cosine_asphalt_is_taken_for_paint(
 @pytest.mark.requirement("SR-MRK-1", kind="measurement", code=SENSE)
 def test_detection_by_range_band_dry_and_wet(safecase_config: SafecaseConfig) -> None:
     cfg = small_markings(safecase_config)
-    n_scans = 40 if active_profile() == "certify" else 4
+    n_scans = 40 if certifying() else 4
     rows = []
     for loss in (0.0, 0.5, 0.8):
         tab = detection_table(cfg, loss, n_scans, 0)
@@ -408,7 +408,7 @@ def test_detection_by_range_band_dry_and_wet(safecase_config: SafecaseConfig) ->
 @pytest.mark.requirement("SR-MRK-3", kind="measurement", code=MATCH)
 def test_the_correction_bounds_the_drift_along_a_drive(safecase_config: SafecaseConfig) -> None:
     cfg = small_markings(safecase_config)
-    certify = active_profile() == "certify"
+    certify = certifying()
     distance = 90.0 if certify else 9.0
     rows = []
     for loss in (0.0, 0.5) if certify else (0.0,):

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import shapely
 
-from evidence.profiles import active_profile
+from evidence.profiles import active_profile, certifying
 from evidence.record import Recorder
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
@@ -112,7 +112,7 @@ def test_future_returns_fall_inside_the_envelopes(
     chain = Perception.from_config(config, classifier=classifier, guard=is_fresh)
     builder = EnvelopeBuilder.from_config(config)
     steps = round(config.predict.horizon_s / config.track.frame_period_s)
-    runs = RUNS_CERTIFY if active_profile() == "certify" else RUNS_CI
+    runs = RUNS_CERTIFY if certifying() else RUNS_CI
     costmap = CostmapBuilder(config.costmap)
     stage_s: dict[str, list[float]] = {
         "classify": [],

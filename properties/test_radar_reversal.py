@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import certifying
 from pipeline.config import SafecaseConfig, overridden
 from pipeline.frames import to_child
 from pipeline.fusion import fuse
@@ -93,7 +93,7 @@ def _run(config: SafecaseConfig, seed: int, weather: str) -> tuple[int | None, .
 @pytest.mark.requirement("SR-FUS-7", kind="measurement", code=CODE)
 def test_radar_sees_the_reversal_sooner(safecase_config: SafecaseConfig, evidence: Any) -> None:
     bench = overridden(safecase_config, {"sim": {"ego_speed_mps": 0.0}})
-    seeds = range(20 if active_profile() == "certify" else 3)
+    seeds = range(20 if certifying() else 3)
     rows: list[list[object]] = []
     lead: dict[str, list[int]] = {"clear": [], "fog": []}
     for weather in ("clear", "fog"):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import certifying
 from evidence.record import Recorder
 from pipeline.config import SafecaseConfig, overridden
 from properties.airside_runs import airside_frames, motmetrics_counts, score_chain
@@ -24,7 +24,7 @@ def test_reidentification_on_ray_cast_occlusions(
     walkers crossing: the same frames tracked with re-identification on and off; counts
     checked against py-motmetrics. A re-identification is false when the track's object
     (majority owner of its cluster's returns) is not the one it followed before."""
-    certify = active_profile() == "certify"
+    certify = certifying()
     seeds = range(20) if certify else range(2)
     duration = 15.0 if certify else 10.0
     rows = []

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import active_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
@@ -35,7 +35,7 @@ CODE = ["safety/runtime.py", "safety/run.py", "safety/geometry/path.py"]
 
 def _runs() -> list[tuple[str, int, float]]:
     named = [n for n in SCENARIOS if n != "random_encounter"]
-    if active_profile() == "certify":
+    if certifying():
         return [
             *((n, seed, 20.0) for n in named for seed in range(3)),
             *(("random_encounter", seed, 20.0) for seed in range(100, 112)),

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import certifying
 from pipeline.config import SafecaseConfig
 from pipeline.sensors.camera import PinholeCamera
 from pipeline.sensors.thermal import ThermalDetector
@@ -56,7 +56,7 @@ def test_pedestrian_recall_lidar_against_thermal(
     safecase_config: SafecaseConfig, evidence: Any
 ) -> None:
     t = safecase_config.thermal
-    seeds = 20 if active_profile() == "certify" else 5
+    seeds = 20 if certifying() else 5
     cam = PinholeCamera.from_config(t)
     detector = ThermalDetector(t)
     dt, da = t.calibration_translation_m, math.radians(t.calibration_angle_deg)

@@ -23,7 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import certifying, examples
 from evidence.record import current
 from evidence.timing import compare
 from pipeline.config import SafecaseConfig, ThermalSection
@@ -403,7 +403,7 @@ def test_detector_speed_against_scipy(safecase_config: SafecaseConfig, benchmark
             "scipy.ndimage: opening + label + find_objects + sum + maximum": scipy_pipeline,
         },
         reference="scipy.ndimage: opening + label + find_objects + sum + maximum",
-        rounds=60 if active_profile() == "certify" else 20,
+        rounds=60 if certifying() else 20,
         title=f"thermal frame {t.width_px} x {t.height_px}, 4 people and a tug at night",
         target_s=5e-3,
     )  # fmt: skip

@@ -25,7 +25,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import active_profile, examples
+from evidence.profiles import certifying, examples
 from evidence.record import Recorder, current
 from evidence.wcet import PwcetReport, exceedance_plot, measured_latency_bound, pwcet
 from pipeline.classify.model import Classifier
@@ -212,7 +212,7 @@ def test_pwcet_within_the_stopping_budget(
     safecase_config: SafecaseConfig, measurement: Measurement, evidence: Recorder
 ) -> None:
     budget = processing_budget_s(safecase_config)
-    gof_mc = 999 if active_profile() == "certify" else 99
+    gof_mc = 999 if certifying() else 99
     report = pwcet(measurement.cpu_s, gof_mc=gof_mc, seed=7)
     _table(evidence, "pWCET of thread CPU time with Monte Carlo goodness of fit", report, budget)
     iid = report.iid

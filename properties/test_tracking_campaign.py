@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evidence.profiles import active_profile
+from evidence.profiles import active_profile, certifying
 from evidence.record import current
 from pipeline.cluster.dbscan import dbscan_points
 from pipeline.config import SafecaseConfig
@@ -23,7 +23,7 @@ SOURCE_TARGET_REDUCTION = 0.30
 @pytest.mark.requirement("SR-TRK-5", kind="campaign", code=CODE)
 def test_reidentification_cuts_id_switches_by_30_percent(safecase_config: SafecaseConfig) -> None:
     """Deterministic occlusion sequences (8 targets, 30 s, 2 occlusions of 0.8-3 s each)."""
-    seeds = range(5 if active_profile() != "certify" else 40)
+    seeds = range(5 if not certifying() else 40)
     totals = {"reid_on": np.zeros(9), "reid_off": np.zeros(9)}
     rows = []
     for seed in seeds:
@@ -178,7 +178,7 @@ def test_every_scan_of_the_real_logs_is_clustered_and_tracked(
 def test_partition_equals_sklearn_on_the_real_logs(safecase_config: SafecaseConfig) -> None:
     """Every 10th scan under ci, every scan under certify."""
     _require_real_data()
-    stride = 1 if active_profile() == "certify" else 10
+    stride = 1 if certifying() else 10
     eps, ms = safecase_config.cluster.eps_m, safecase_config.cluster.min_samples
     rec = current()
     rec.note(f"cross-checked every {stride} scan(s) of each stream (profile {active_profile()})")

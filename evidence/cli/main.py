@@ -50,7 +50,7 @@ app.command("train")(train_command)
 app.command("run")(run_command)
 app.command("campaign")(campaign_command)
 
-PROFILES = ("dev", "ci", "certify")
+PROFILES = ("dev", "ci", "certify", "certify-full")
 
 
 def _version(value: bool) -> None:
