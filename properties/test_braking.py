@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import certifying, examples
+from evidence.profiles import by_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig, overridden
 from safety.model.braking import BrakingWatch
@@ -74,7 +74,7 @@ SCENARIOS = ("reversing_forklift_aisle", "crossing_pedestrian", "occlusion_behin
 def test_the_braking_monitor_trips_on_weak_brakes_and_only_then(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:
-    seeds = range(1 if not certifying() else 3)
+    seeds = range(by_profile(ci=1, certify=2, full=3))
     duration_s = 8.0 if not certifying() else 20.0
     s = safecase_config.stopping
     weak_decel = 0.5 * s.decel_min_mps2

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import run_state_machine_as_test
 
-from evidence.profiles import certifying, examples
+from evidence.profiles import by_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig, TrackSection, default_config, overridden
 from pipeline.track import kalman
@@ -211,7 +211,7 @@ def test_jpda_against_hungarian_on_ray_cast_scenarios(
     overlap: dolly trains with gaps under 0.5 m, adjacent containers, a crowd of walkers and
     clutter. CLEAR-MOT counts are checked against py-motmetrics on every run."""
     certify = certifying()
-    seeds = range(10) if certify else range(1)
+    seeds = range(by_profile(ci=1, certify=5, full=10))
     duration = 20.0 if certify else 8.0
     base = overridden(safecase_config, {"track": {"association": "hungarian"}})
     jpda = overridden(safecase_config, {"track": {"association": "jpda"}})

@@ -33,7 +33,7 @@ swing by about 2)."""
 @pytest.mark.requirement("SR-PRED-4", kind="measurement", code=CODE)
 def test_track_heading_in_prediction_on_ray_cast_runs(safecase_config: SafecaseConfig) -> None:
     """Containment and reach area, "motion" against "track" (module docstring)."""
-    seeds = by_profile(range(3), range(40))
+    seeds = by_profile(range(3), range(20), full=range(40))
     duration = by_profile(8.0, 10.0)
     results = study(safecase_config, seeds, duration)
     rec = current()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evidence.profiles import certifying
+from evidence.profiles import by_profile, certifying
 from evidence.record import Recorder
 from pipeline.config import SafecaseConfig, overridden
 from properties.airside_runs import airside_frames, motmetrics_counts, score_chain
@@ -25,7 +25,7 @@ def test_reidentification_on_ray_cast_occlusions(
     checked against py-motmetrics. A re-identification is false when the track's object
     (majority owner of its cluster's returns) is not the one it followed before."""
     certify = certifying()
-    seeds = range(20) if certify else range(2)
+    seeds = range(by_profile(ci=2, certify=10, full=20))
     duration = 15.0 if certify else 10.0
     rows = []
     totals = {"on": np.zeros(3), "off": np.zeros(3)}

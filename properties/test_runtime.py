@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evidence.profiles import active_profile, certifying, examples
+from evidence.profiles import active_profile, by_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
@@ -36,9 +36,10 @@ CODE = ["safety/runtime.py", "safety/run.py", "safety/geometry/path.py"]
 def _runs() -> list[tuple[str, int, float]]:
     named = [n for n in SCENARIOS if n != "random_encounter"]
     if certifying():
+        seeds, randoms = by_profile(ci=(0, 0), certify=(2, 6), full=(3, 12))
         return [
-            *((n, seed, 20.0) for n in named for seed in range(3)),
-            *(("random_encounter", seed, 20.0) for seed in range(100, 112)),
+            *((n, seed, 20.0) for n in named for seed in range(seeds)),
+            *(("random_encounter", seed, 20.0) for seed in range(100, 100 + randoms)),
         ]
     return [*((n, 0, 15.0) for n in named), *(("random_encounter", s, 15.0) for s in (1, 2))]
 
