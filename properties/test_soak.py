@@ -11,12 +11,12 @@ which still check the bounds.
 
 The bounds, after a warm-up of ``max(100, 10 %)`` cycles (caches, the classifier, the
 allocator's arenas): the RSS grows by less than ``GROWTH_MB`` from the first tenth of the
-samples to the last (medians) and along the least-squares fit over the run; under ``certify-
-full`` the fitted slope is also under ``GROWTH_MB`` per hour of cycles at 10 Hz. The median
-cycle CPU time (the main thread's: simulator or driver, and runtime) in the last tenth of the
-run is at most ``COST_RATIO`` times that of the tenth after the warm-up (``SHORT_COST_RATIO``
-for the short runs, whose tenths are too few cycles for a tighter bound). The tables also give
-the first tenth (warm-up included) and the wall times.
+samples to the last (medians) and along the least-squares fit over the run; under
+``certify-full`` the fitted slope is also under ``GROWTH_MB`` per hour of cycles at 10 Hz. The
+median cycle CPU time (the main thread's: simulator or driver, and runtime) in the last tenth of
+the run is at most ``COST_RATIO`` times that of the tenth after the warm-up
+(``SHORT_COST_RATIO`` for the short runs, whose tenths are too few cycles for a tighter bound).
+The tables also give the first tenth (warm-up included) and the wall times.
 """
 
 from __future__ import annotations
