@@ -81,6 +81,26 @@ class Recorder:
             raise RuntimeError("evidence: no test is running; attach details from inside a test")
         return self._items[-1]
 
+    def replay(
+        self,
+        details: list[dict[str, Any]],
+        counters: Mapping[str, Mapping[str, float]],
+        kind: str | None,
+        provenance: Mapping[str, Any],
+    ) -> None:
+        """Attach to the running test what the same test body recorded in another process
+        (properties.ahead): its details in order, its counters added, its kind when declared
+        and its session provenance."""
+        record = self._record
+        record.details.extend(details)
+        for group, values in counters.items():
+            mine = record.counters.setdefault(group, {})
+            for key, n in values.items():
+                mine[key] = mine.get(key, 0) + n
+        if kind is not None:
+            record.kind = kind
+        self.session_provenance.update(provenance)
+
     # -- what tests call -------------------------------------------------------------------
     def kind(self, kind: str) -> None:
         """Declare the evidence kind of this test when inference would get it wrong."""

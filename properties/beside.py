@@ -22,7 +22,7 @@ from collections.abc import Callable, Hashable
 from multiprocessing.pool import AsyncResult, Pool
 from typing import Any
 
-__all__ = ["WORKERS", "Beside", "result", "start", "stop"]
+__all__ = ["WORKERS", "Beside", "result", "start", "started", "stop"]
 
 WORKERS = 2
 """How many started calls run at once (one process each)."""
@@ -41,21 +41,26 @@ class Beside:
         self._pool: Pool | None = None
         self._started: dict[Hashable, tuple[tuple[Any, ...], AsyncResult[Any]]] = {}
 
-    def start(self, call: Callable[..., Any], *args: Any) -> None:
+    def start(self, call: Callable[..., Any], *args: Any, key: Hashable = None) -> None:
         """Queue ``call(*args)`` on the worker processes (started on first use); one call per
-        function."""
-        if _key(call) in self._started:
-            raise ValueError(f"{call.__qualname__} is already queued")
+        function, or per ``key`` when one function serves several callers."""
+        key = _key(call) if key is None else key
+        if key in self._started:
+            raise ValueError(f"{call.__qualname__} is already queued as {key!r}")
         if self._pool is None:
             context = multiprocessing.get_context("spawn")
             self._pool = context.Pool(processes=self.workers, maxtasksperchild=1)
-        self._started[_key(call)] = (args, self._pool.apply_async(call, args))
+        self._started[key] = (args, self._pool.apply_async(call, args))
 
-    def result(self, call: Callable[..., Any], *args: Any) -> Any:
+    def started(self, key: Hashable) -> bool:
+        """Whether a call queued under ``key`` waits for its :meth:`result`."""
+        return key in self._started
+
+    def result(self, call: Callable[..., Any], *args: Any, key: Hashable = None) -> Any:
         """What ``call(*args)`` returns: from a worker when :meth:`start` queued this very call,
         else computed here. Raises ``ValueError`` when the queued call had other arguments (the
         figures would not be the ones asked for)."""
-        pending = self._started.pop(_key(call), None)
+        pending = self._started.pop(_key(call) if key is None else key, None)
         if pending is None:
             return call(*args)
         queued, answer = pending
@@ -75,14 +80,19 @@ class Beside:
 _session = Beside()
 
 
-def start(call: Callable[..., Any], *args: Any) -> None:
+def start(call: Callable[..., Any], *args: Any, key: Hashable = None) -> None:
     """:meth:`Beside.start` on the session's workers."""
-    _session.start(call, *args)
+    _session.start(call, *args, key=key)
 
 
-def result(call: Callable[..., Any], *args: Any) -> Any:
+def started(key: Hashable) -> bool:
+    """:meth:`Beside.started` on the session's workers."""
+    return _session.started(key)
+
+
+def result(call: Callable[..., Any], *args: Any, key: Hashable = None) -> Any:
     """:meth:`Beside.result` on the session's workers."""
-    return _session.result(call, *args)
+    return _session.result(call, *args, key=key)
 
 
 def stop() -> None:

@@ -1,5 +1,7 @@
-"""Session hooks of the property suite: under certify the soaks (SR-RUN-5) start in a worker
-beside the suite when collection ends, and their tests run last (:mod:`properties.beside`)."""
+"""Session hooks of the property suite: under certify, when collection ends, the soaks
+(SR-RUN-5) and the bodies of the campaigns decorated with :func:`properties.ahead.ahead` start
+in workers beside the suite (:mod:`properties.beside`), and the tests that wait for them run
+last: the campaigns, then the soaks."""
 
 from __future__ import annotations
 
@@ -7,28 +9,41 @@ import pytest
 
 from evidence.profiles import active_profile, certifying
 from pipeline.config import load_config
-from properties import beside
+from properties import ahead, beside
 from properties.soak import SOAK_FILE, soak_calls
 
 
-def _certify_soak(items: list[pytest.Item]) -> bool:
-    return certifying() and any(i.path.name == SOAK_FILE for i in items)
+def _waits(item: pytest.Item) -> int:
+    """0 for a test that runs in turn, 1 for a campaign run ahead, 2 for a soak."""
+    if item.path.name == SOAK_FILE:
+        return 2
+    return 1 if ahead.is_ahead(getattr(item, "obj", None)) else 0
 
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    if _certify_soak(items):
-        # The soak tests wait for the worker: run them last, when it has had the whole suite.
-        items.sort(key=lambda item: item.path.name == SOAK_FILE)
+    if certifying():
+        # The tests that wait for a worker run last, when it has had the rest of the suite.
+        items.sort(key=_waits)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
-    if _certify_soak(session.items):
-        # The same configuration the safecase_config fixture loads (a bad file has already
-        # stopped the session as a usage error by now).
-        config = load_config(session.config.getoption("safecase_config"))
+    if not certifying():
+        return
+    waiting = [item for item in session.items if _waits(item)]
+    if not waiting:
+        return
+    # The same configuration the safecase_config fixture loads (a bad file has already
+    # stopped the session as a usage error by now).
+    config = load_config(session.config.getoption("safecase_config"))
+    if any(_waits(item) == 2 for item in waiting):
         for call, args in soak_calls(config, active_profile()):
             beside.start(call, *args)
+    for item in waiting:
+        if _waits(item) == 1:
+            if hasattr(item, "callspec"):
+                raise pytest.UsageError(f"{item.nodeid}: a parametrized test cannot run ahead")
+            ahead.start(getattr(item, "obj"), config)  # noqa: B009 (a Function item)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -296,8 +296,9 @@ SoakCall = tuple[Callable[..., Soak], tuple[Any, ...]]
 
 
 def soak_calls(config: SafecaseConfig, profile: str) -> tuple[SoakCall, SoakCall]:
-    """The simulator soak and the device soak ``profile`` runs, as (function, arguments):
-    one simulated hour and 30,000 scans under certify, 1,000 cycles and 300 scans otherwise."""
+    """The simulator soak and the device soak ``profile`` runs, as (function, arguments): one
+    simulated hour and 30,000 scans under certify-full, 9,000 cycles and 10,000 scans under
+    certify, 1,000 cycles and 300 scans otherwise."""
     cycles = SIM_CYCLES.get(profile, SHORT_SIM_CYCLES)
     scans = DEVICE_SCANS.get(profile, SHORT_DEVICE_SCANS)
     return (

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from evidence.profiles import by_profile, certifying, examples
 from evidence.record import Recorder, current
 from pipeline.config import SafecaseConfig, overridden
+from properties.ahead import ahead
 from safety.model.braking import BrakingWatch
 from safety.model.monitors import Observation, braking
 from safety.run import run_scenario
@@ -71,6 +72,7 @@ SCENARIOS = ("reversing_forklift_aisle", "crossing_pedestrian", "occlusion_behin
 
 
 @pytest.mark.requirement("SR-RUN-6", kind="campaign", code=CODE)
+@ahead
 def test_the_braking_monitor_trips_on_weak_brakes_and_only_then(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:

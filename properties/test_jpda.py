@@ -20,6 +20,7 @@ from pipeline.track.associate import gated_costs
 from pipeline.track.jpda import JpdaAssociator, SoftAssociation, pda_update, track_clusters
 from pipeline.track.tracker import Tracker
 from pipeline.types import FloatArray
+from properties.ahead import ahead
 from properties.airside_runs import airside_frames, motmetrics_counts, score_chain, timed
 from properties.oracles.jpda import stonesoup_jpda
 from properties.test_tracking import TrackerMachine
@@ -204,6 +205,7 @@ def _ms(values: np.ndarray) -> float:
 
 
 @pytest.mark.requirement("SR-TRK-8", kind="campaign", code=CODE_TRACKER)
+@ahead
 def test_jpda_against_hungarian_on_ray_cast_scenarios(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:

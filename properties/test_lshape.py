@@ -17,6 +17,7 @@ from pipeline.config import SafecaseConfig, default_config, overridden
 from pipeline.shape.box import cluster_shapes
 from pipeline.shape.lshape import CRITERIA, angle_grid, lshape_fit
 from pipeline.types import FloatArray, IntArray
+from properties.ahead import ahead
 from properties.airside_runs import airside_frames
 from properties.heading_cases import RANGE_BINS_M, VIEWS, HeadingSamples, heading_samples
 from properties.oracles.lshape import brute_force_lshape
@@ -159,6 +160,7 @@ def _cell(values: np.ndarray) -> str:
 
 
 @pytest.mark.requirement("SR-TRK-7", kind="campaign", code=CODE_TRACK)
+@ahead
 def test_heading_error_by_view_and_range_on_ray_cast_scans(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:

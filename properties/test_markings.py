@@ -33,6 +33,7 @@ from pipeline.sources.sim.markings_study import BANDS_M, detection_table, drive_
 from pipeline.sources.sim.rings import GAIN, Cylinders, Surface
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.source import SimSource
+from properties.ahead import ahead
 from properties.markings_cases import (
     arc_points,
     bare_map,
@@ -406,6 +407,7 @@ def test_detection_by_range_band_dry_and_wet(safecase_config: SafecaseConfig) ->
 
 
 @pytest.mark.requirement("SR-MRK-3", kind="measurement", code=MATCH)
+@ahead
 def test_the_correction_bounds_the_drift_along_a_drive(safecase_config: SafecaseConfig) -> None:
     cfg = small_markings(safecase_config)
     certify = certifying()

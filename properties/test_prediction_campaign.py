@@ -32,6 +32,7 @@ from pipeline.perception import Perception
 from pipeline.sources.sim.truth import CLASS_NAMES
 from pipeline.training.data import Cycle, RunSpec, perceive
 from pipeline.types import Envelopes, PredictionMode
+from properties.ahead import ahead
 from properties.oracles.geometry import shapely_polygons
 from safety.geometry.costmap import CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
@@ -104,6 +105,7 @@ def _followed_objects(cycle: Cycle, env: Envelopes) -> list[_Followed]:
 @pytest.mark.requirement(
     "SR-PRED-1", kind="campaign", code=["pipeline/predict.py", "safety/geometry/envelopes.py"]
 )
+@ahead
 def test_future_returns_fall_inside_the_envelopes(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:

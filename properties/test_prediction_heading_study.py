@@ -21,6 +21,7 @@ import pytest
 from evidence.profiles import by_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
+from properties.ahead import ahead
 from properties.heading_prediction_study import HEADER, study, table
 
 CODE = ["pipeline/predict.py", "pipeline/predict_axis.py", "pipeline/track/heading.py"]
@@ -31,6 +32,7 @@ swing by about 2)."""
 
 
 @pytest.mark.requirement("SR-PRED-4", kind="measurement", code=CODE)
+@ahead
 def test_track_heading_in_prediction_on_ray_cast_runs(safecase_config: SafecaseConfig) -> None:
     """Containment and reach area, "motion" against "track" (module docstring)."""
     seeds = by_profile(range(3), range(20), full=range(40))

@@ -18,6 +18,7 @@ from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.source import SimSource
 from pipeline.sources.sim.weather_scenarios import weather_simulation
 from pipeline.types import NOISE_LABEL
+from properties.ahead import ahead
 
 CODE = ["pipeline/sensors/radar.py", "pipeline/perception.py"]
 WEATHERS = ("clear", "night", "rain", "heavy_rain", "fog", "night_fog")
@@ -49,6 +50,7 @@ def _indices(config: SafecaseConfig, name: str, weather: str, seeds: range) -> l
 
 
 @pytest.mark.requirement("SR-FUS-7", kind="measurement", code=CODE)
+@ahead
 def test_clear_air_never_reaches_the_degraded_threshold_and_fog_always_does(
     safecase_config: SafecaseConfig,
 ) -> None:

@@ -30,6 +30,7 @@ from pipeline.sources.sim.radar import RadarSpec, SimRadar
 from pipeline.sources.sim.weather_scenarios import weather_simulation
 from pipeline.types import Frame
 from pipeline.types.sensors import Twist
+from properties.ahead import ahead
 from safety.model.freshness import is_fresh
 
 THRESHOLD_MPS = 0.3
@@ -91,6 +92,7 @@ def _run(config: SafecaseConfig, seed: int, weather: str) -> tuple[int | None, .
 
 
 @pytest.mark.requirement("SR-FUS-7", kind="measurement", code=CODE)
+@ahead
 def test_radar_sees_the_reversal_sooner(safecase_config: SafecaseConfig, evidence: Any) -> None:
     bench = overridden(safecase_config, {"sim": {"ego_speed_mps": 0.0}})
     seeds = range(20 if certifying() else 3)

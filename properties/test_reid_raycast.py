@@ -9,6 +9,7 @@ import pytest
 from evidence.profiles import by_profile, certifying
 from evidence.record import Recorder
 from pipeline.config import SafecaseConfig, overridden
+from properties.ahead import ahead
 from properties.airside_runs import airside_frames, motmetrics_counts, score_chain
 
 CODE = ["pipeline/track/tracker.py", "pipeline/track/lifecycle.py"]
@@ -16,6 +17,7 @@ OCCLUSIONS = ("walker_behind_carts", "tug_behind_stand", "walker_crowd")
 
 
 @pytest.mark.requirement("SR-TRK-9", kind="campaign", code=CODE)
+@ahead
 def test_reidentification_on_ray_cast_occlusions(
     safecase_config: SafecaseConfig, evidence: Recorder
 ) -> None:

@@ -24,6 +24,7 @@ from pipeline.config import SafecaseConfig
 from pipeline.sources.sim.ego import ConstantSpeed
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.types import Action, RadarDetections, Scan
+from properties.ahead import ahead
 from safety.audit.replay import replay
 from safety.audit.verify import verify_log
 from safety.run import RunSummary, contact_speeds, run_scenario, run_simulation
@@ -51,6 +52,7 @@ def classifier(safecase_config: SafecaseConfig) -> Classifier:
 
 
 @pytest.mark.requirement("SR-RUN-1", kind="campaign", code=CODE)
+@ahead
 def test_closed_loop_passive_safety(
     safecase_config: SafecaseConfig, classifier: Classifier, evidence: Recorder
 ) -> None:

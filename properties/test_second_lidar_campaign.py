@@ -11,6 +11,7 @@ import pytest
 from evidence.profiles import by_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
+from properties.ahead import ahead
 from properties.second_lidar_study import HEADER, overtaking_run, table
 from properties.studies import caption, flat, side_by_side
 
@@ -25,6 +26,7 @@ EARLIER_S = 2.0
 
 
 @pytest.mark.requirement("SR-LID-4", kind="campaign", code=CODE)
+@ahead
 def test_a_rear_scanner_tracks_an_overtaking_tug_earlier_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:

@@ -11,6 +11,7 @@ import pytest
 from evidence.profiles import by_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
+from properties.ahead import ahead
 from properties.sensors_loop_study import (
     HEADER,
     WALKER_HEADER,
@@ -31,6 +32,7 @@ CODE = [
 
 
 @pytest.mark.requirement("SR-FUS-9", kind="campaign", code=CODE)
+@ahead
 def test_the_radar_sees_a_reversing_tug_no_later_while_the_robot_moves_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:
@@ -70,6 +72,7 @@ def test_the_radar_sees_a_reversing_tug_no_later_while_the_robot_moves_without_c
 
 
 @pytest.mark.requirement("SR-FUS-9", kind="campaign", code=CODE)
+@ahead
 def test_at_night_the_camera_sees_the_agent_beyond_the_lidar_without_contact(
     safecase_config: SafecaseConfig,
 ) -> None:

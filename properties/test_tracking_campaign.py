@@ -12,6 +12,7 @@ from pipeline.config import SafecaseConfig
 from pipeline.perception import Perception, Stopwatch
 from pipeline.points import scan_to_points
 from pipeline.track.metrics import compare_reid
+from properties.ahead import ahead
 from properties.oracles.tracking import compare_partitions, sklearn_dbscan
 from properties.real_logs import MISSING_REASON, REAL_DATA, streams
 from properties.scenes import occlusion_sequence
@@ -21,6 +22,7 @@ SOURCE_TARGET_REDUCTION = 0.30
 
 
 @pytest.mark.requirement("SR-TRK-5", kind="campaign", code=CODE)
+@ahead
 def test_reidentification_cuts_id_switches_by_30_percent(safecase_config: SafecaseConfig) -> None:
     """Deterministic occlusion sequences (8 targets, 30 s, 2 occlusions of 0.8-3 s each)."""
     seeds = range(5 if not certifying() else 40)
@@ -93,6 +95,7 @@ def _require_real_data() -> None:
     kind="campaign",
     code=["pipeline/cluster/dbscan.py", "pipeline/sources/logs/__init__.py", *CODE],
 )
+@ahead
 def test_every_scan_of_the_real_logs_is_clustered_and_tracked(
     safecase_config: SafecaseConfig,
 ) -> None:
@@ -175,6 +178,7 @@ def test_every_scan_of_the_real_logs_is_clustered_and_tracked(
 
 
 @pytest.mark.requirement("SR-TRK-2", kind="cross-check", code=["pipeline/cluster/dbscan.py"])
+@ahead
 def test_partition_equals_sklearn_on_the_real_logs(safecase_config: SafecaseConfig) -> None:
     """Every 10th scan under ci, every scan under certify."""
     _require_real_data()
