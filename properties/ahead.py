@@ -1,16 +1,16 @@
 """Campaign tests whose bodies run ahead, in a worker beside the suite (certify only).
 
-A campaign that runs for a minute or more on one core computes its figures and checks them;
-its body needs nothing from the test session but the configuration, a recorder and perhaps the
+A campaign that runs for a minute or more on one core computes its figures and checks them; its
+body needs nothing from the test session but the configuration, a recorder and perhaps the
 classifier. Decorated with :func:`ahead`, such a test's body is queued on the workers of
 :mod:`properties.beside` when collection ends under certify (``properties/conftest.py``), on the
-core the suite leaves idle, and the test itself, run near the end, takes what the body recorded
-and how it ended: the details are attached to its evidence in the order they were recorded, a
-failure is raised here with the worker's traceback, and counters give the body's wall time in
-the worker (:data:`evidence.durations.WORKER_TIME`). Run alone, under any other profile, or
-when nothing was queued for it, the test runs its body in-process as any other test. The
-figures are the same either way: the campaigns draw their randomness from seeds, never from the
-process.
+core the suite leaves idle, at a lower priority than the suite (:data:`NICE`), and the test
+itself, run near the end, takes what the body recorded and how it ended: the details are
+attached to its evidence in the order they were recorded, a failure is raised here with the
+worker's traceback, and counters give the body's wall time in the worker
+(:data:`evidence.durations.WORKER_TIME`). Run alone, under any other profile, or when nothing
+was queued for it, the test runs its body in-process as any other test. The figures are the same
+either way: the campaigns draw their randomness from seeds, never from the process.
 
 The body gets the same fixtures in the worker: ``safecase_config`` (the session's configuration,
 passed to the worker), ``evidence`` (the worker's recorder) and ``classifier`` (the configured
@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import importlib
 import inspect
+import os
 import pickle
 import time
 import traceback
@@ -39,6 +40,9 @@ __all__ = ["FIXTURES", "WORKER_TIME", "Outcome", "ahead", "is_ahead", "key_of", 
 FIXTURES = frozenset({"safecase_config", "evidence", "classifier"})
 """The fixtures a body run ahead may ask for."""
 
+
+NICE = 10
+"""How much lower than the suite's a body run ahead is scheduled (``os.nice``)."""
 
 _MARK = "__safecase_ahead__"
 
@@ -123,6 +127,9 @@ def run_body(module: str, qualname: str, config: SafecaseConfig, profile: str) -
 
     from evidence.profiles import register_profiles, set_active_profile
 
+    # The suite is the critical path (its timing measurements, its Dask campaigns): the body
+    # takes only the processor time the suite leaves (one worker process per body).
+    os.nice(NICE)
     register_profiles()
     settings.load_profile(profile)
     set_active_profile(profile)
