@@ -8,9 +8,11 @@ core the suite leaves idle, at a lower priority than the suite (:data:`NICE`), a
 itself, run near the end, takes what the body recorded and how it ended: the details are
 attached to its evidence in the order they were recorded, a failure is raised here with the
 worker's traceback, and counters give the body's wall time in the worker
-(:data:`evidence.durations.WORKER_TIME`). Run alone, under any other profile, or when nothing
-was queued for it, the test runs its body in-process as any other test. The figures are the same
-either way: the campaigns draw their randomness from seeds, never from the process.
+(:data:`evidence.durations.WORKER_TIME`) with a note that any wall-clock time the body recorded
+includes its preemption by the suite (the timing requirements are measured in the suite). Run
+alone, under any other profile, or when nothing was queued for it, the test runs its body
+in-process as any other test. The figures are the same either way: the campaigns draw their
+randomness from seeds, never from the process.
 
 The body gets the same fixtures in the worker: ``safecase_config`` (the session's configuration,
 passed to the worker), ``evidence`` (the worker's recorder) and ``classifier`` (the configured
@@ -99,6 +101,11 @@ def ahead(test: Callable[..., None]) -> Callable[..., None]:
         recorder = current()
         recorder.replay(outcome.details, outcome.counters, outcome.kind, outcome.provenance)
         recorder.counts(WORKER_TIME, {"wall s": round(outcome.wall_s, 1)})
+        recorder.note(
+            f"Run in a worker beside the suite at nice {NICE}: any wall-clock time in these "
+            "details includes the worker's preemption by the suite and is no timing evidence "
+            "(the timing requirements are measured in the suite)."
+        )
         if outcome.error is not None:
             raise outcome.error from WorkerTracebackError(outcome.traceback)
 

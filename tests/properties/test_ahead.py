@@ -49,7 +49,9 @@ def test_a_body_run_ahead_is_recorded_here_as_the_worker_recorded_it(
     ahead.start(records_its_process, safecase_config)
     assert workers.started(ahead.key_of(records_its_process))
     records_its_process(safecase_config=safecase_config, evidence=current())
-    pid = int(_notes()[-1].removeprefix("pid "))
+    notes = _notes()
+    pid = int(notes[-2].removeprefix("pid "))
+    assert "no timing evidence" in notes[-1]
     assert pid != os.getpid()
     record = current().peek()
     assert record is not None
