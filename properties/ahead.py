@@ -32,12 +32,26 @@ from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
 
+from hypothesis import settings
+
 from evidence.durations import WORKER_TIME
+from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import current
 from pipeline.config import SafecaseConfig
 from properties import beside
 
-__all__ = ["FIXTURES", "WORKER_TIME", "Outcome", "ahead", "is_ahead", "key_of", "run_body", "start"]
+__all__ = [
+    "FIXTURES",
+    "NICE",
+    "WORKER_TIME",
+    "Outcome",
+    "WorkerTracebackError",
+    "ahead",
+    "is_ahead",
+    "key_of",
+    "run_body",
+    "start",
+]
 
 FIXTURES = frozenset({"safecase_config", "evidence", "classifier"})
 """The fixtures a body run ahead may ask for."""
@@ -114,8 +128,6 @@ def ahead(test: Callable[..., None]) -> Callable[..., None]:
 
 
 def _call(test: Callable[..., Any], config: SafecaseConfig) -> tuple[str, str, SafecaseConfig, str]:
-    from evidence.profiles import active_profile
-
     return (test.__module__, test.__qualname__, config, active_profile())
 
 
@@ -130,10 +142,6 @@ def start(test: Callable[..., Any], config: SafecaseConfig) -> None:
 def run_body(module: str, qualname: str, config: SafecaseConfig, profile: str) -> Outcome:
     """Run the body of ``module.qualname`` under ``profile`` in this (worker) process, with the
     fixtures it asks for, and return what it recorded and how it ended."""
-    from hypothesis import settings
-
-    from evidence.profiles import register_profiles, set_active_profile
-
     # The suite is the critical path (its timing measurements, its Dask campaigns): the body
     # takes only the processor time the suite leaves (one worker process per body).
     os.nice(NICE)
