@@ -191,7 +191,8 @@ def test_the_bearing_agrees_with_pyroomacoustics_srp_phat(
 ) -> None:
     pra = pytest.importorskip(
         "pyroomacoustics",
-        reason="pyroomacoustics (the DOA oracle) is not installed: make acoustic-oracle",
+        reason="pyroomacoustics (the DOA oracle) is not installed: its build failed or was not"
+        " tried (out/acoustic-oracle.log); make acoustic-oracle builds it",
     )
     case = heard(
         SECTION, beeper_at(bearing, freq_hz, 0.8, 0.1), 10.0, WINDOW_S, np.random.default_rng(seed)
