@@ -11,7 +11,8 @@ any worker.
 Availability (SR-AVL-1, SR-RUN-8): a shadow oracle (:class:`safety.availability.Shadow`, the
 runtime fed the simulator's ground truth) decides on every one of our frames without driving the
 robot, so every row counts its *nuisance STOP* cycles (we STOP, the oracle in the same situation
-would PROCEED or SLOW) and what set our command in them. With ``oracle=True`` the oracle also
+would PROCEED or SLOW) and what set our command in them; a campaign about the contact rate alone
+can leave the shadow out (``shadow=False``). With ``oracle=True`` the oracle also
 drives a second simulation of the same seed, and the row holds our progress over the oracle's
 over the time both lasted (:meth:`safety.availability.Comparison.progress_share`).
 
@@ -40,7 +41,8 @@ from pipeline.jsoncodec import dumps
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED, Simulation
 from safety.availability import Comparison, run_oracle, run_ours
-from safety.run import contact_speeds
+from safety.run import contact_speeds, run_simulation
+from safety.runtime import Runtime
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -206,24 +208,36 @@ def _classifier(section: ClassifySection) -> Classifier:
 
 
 def run_encounter(
-    config: SafecaseConfig, encounter: Encounter, *, oracle: bool = False
+    config: SafecaseConfig, encounter: Encounter, *, oracle: bool = False, shadow: bool = True
 ) -> CampaignRow:
     """Run ``encounter`` in closed loop with the shadow oracle beside it and summarise it;
     with ``oracle`` also the oracle's own closed loop of the same seed (module docstring).
+
+    Without ``shadow`` the run has no shadow oracle (about 40 % less CPU) and its row no
+    nuisance figures (``nuisance_cycles`` None): what a campaign about the contact rate alone
+    needs. The shadow only watches, so our run, and every other field of the row, is the same
+    either way. ``oracle`` needs the shadow (its comparison reads the shadow's cycles).
 
     Raises whatever the run raises; a campaign turns that into a :func:`failed_row`.
     """
     if encounter.scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {encounter.scenario!r}")
+    if oracle and not shadow:
+        raise ValueError("oracle=True needs the shadow oracle (shadow=True)")
     model = _classifier(config.classify)
     sim = _simulation(config, encounter)
-    summary, shadow = run_ours(config, sim, model)
+    if shadow:
+        summary, watcher = run_ours(config, sim, model)
+        flags = watcher.nuisance()
+        causes = Counter(row[5] for row, flag in zip(watcher.rows, flags, strict=True) if flag)
+        nuisance: int | None = sum(flags)
+    else:
+        summary = run_simulation(config, sim, runtime=Runtime(config, classifier=model))
+        causes, nuisance = Counter(), None
     result = summary.sim
     assert result is not None  # run_simulation always sets it
     speeds = contact_speeds(result)
     cpu = np.asarray(summary.cpu_s, dtype=float) * 1e3
-    flags = shadow.nuisance()
-    causes = Counter(row[5] for row, flag in zip(shadow.rows, flags, strict=True) if flag)
     share = None
     if oracle:
         best = run_oracle(config, _simulation(config, encounter), model)
@@ -233,7 +247,7 @@ def run_encounter(
             summary,
             best,
             summary,  # no baseline runs in a campaign; nothing here reads its slot
-            shadow,
+            watcher,
             sim.lidar.spec.scan_period_s,
         )
         share = pair.progress_share()
@@ -255,7 +269,7 @@ def run_encounter(
             if cpu.size
             else {}
         ),
-        nuisance_cycles=sum(flags),
+        nuisance_cycles=nuisance,
         nuisance_causes=dict(causes),
         progress_share=share,
     )
@@ -360,15 +374,17 @@ def run_campaign(
     on_row: Callable[[CampaignRow], None] | None = None,
     *,
     oracle: bool = False,
+    shadow: bool = True,
 ) -> list[CampaignRow]:
     """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster (with the
-    oracle's closed loop too when ``oracle``: :func:`run_encounter`), appending each row to
+    oracle's closed loop too when ``oracle``, without the shadow oracle unless ``shadow``:
+    :func:`run_encounter`), appending each row to
     ``log`` as it arrives (a failure as a :func:`failed_row`); all of the log's rows, resumed
     ones first (kept as they were written, with or without the oracle)."""
     from pipeline.distributed import TaskFailed, as_done  # Dask loads only for a campaign
 
     todo = pending(plan, log)
-    task = functools.partial(run_encounter, config, oracle=oracle)
+    task = functools.partial(run_encounter, config, oracle=oracle, shadow=shadow)
     for done in as_done(client, task, todo):
         encounter = todo[done.index]
         result = done.result

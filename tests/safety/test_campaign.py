@@ -164,6 +164,23 @@ def test_a_row_counts_the_nuisance_stops_compare_finds(safecase_config: Safecase
 
 
 @pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
+def test_without_the_shadow_a_row_is_the_same_but_its_nuisance_figures(
+    safecase_config: SafecaseConfig,
+) -> None:
+    """The shadow only watches: leaving it out changes no command, contact or distance of the
+    run, only the nuisance figures (None: not counted, so not in the availability figures)."""
+    encounter = Encounter("tug_overtaking", 3, 2.5)
+    watched = run_encounter(safecase_config, encounter)
+    lean = run_encounter(safecase_config, encounter, shadow=False)
+    assert watched.nuisance_cycles is not None and watched.nuisance_cycles > 0
+    assert lean.nuisance_cycles is None and lean.nuisance_share is None
+    assert lean.outcome() == {**watched.outcome(), "nuisance_cycles": None, "nuisance_causes": {}}
+    assert availability([lean]).runs == 0
+    with pytest.raises(ValueError, match="shadow"):
+        run_encounter(safecase_config, encounter, oracle=True, shadow=False)
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
 def test_a_row_with_availability_reads_back_the_same(tmp_path: Path) -> None:
     row = _row("random_encounter", 3, nuisance=5, share=0.8125)
     line = dumps(row.to_json())
@@ -263,6 +280,13 @@ def test_the_command_refuses_bad_input(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["campaign", "--encounters", "0", "--out", str(bad)])
     assert result.exit_code == 2
     assert "nothing to run" in result.output
+    new = str(tmp_path / "new.jsonl")
+    result = CliRunner().invoke(
+        app, ["campaign", "--encounters", "1", "--oracle", "--no-shadow", "--out", new]
+    )
+    assert result.exit_code == 2
+    assert "--no-shadow" in result.output
+    assert not (tmp_path / "new.jsonl").exists()
     result = CliRunner().invoke(
         app,
         [
@@ -304,6 +328,7 @@ def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
             "1",
             "--workers",
             "1",
+            "--no-shadow",
             "--out",
             str(target),
         ],
@@ -313,5 +338,6 @@ def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
     assert "2 of 3 runs done" in more.output
     lines = target.read_text().splitlines()
     assert len(lines) == 4
+    assert json.loads(lines[1])["nuisance_cycles"] is not None
     assert json.loads(lines[3])["progress_share"] is None  # this call ran without --oracle
-    assert json.loads(lines[3])["nuisance_cycles"] is not None
+    assert json.loads(lines[3])["nuisance_cycles"] is None  # ... and without the shadow
