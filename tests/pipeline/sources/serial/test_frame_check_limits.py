@@ -2,7 +2,8 @@
 
 Each check is exercised on both sides of what it accepts: a SCIP line one byte too short, a
 character at the edge of the 6-bit alphabet, an info line checksummed either way, an express
-capsule with one sync nibble wrong and its checksum right. The errors must carry the offset
+capsule with one sync nibble wrong and its checksum right, an RPLIDAR node at exactly 360
+degrees, a request one byte short at an offset into the buffer. The errors must carry the offset
 they were given and a reason that names the bad frame, since the runtime records both (the
 mutation campaign of the per-cycle stages, SR-EVD-6 in docs/findings/mutation.md, showed these
 unwatched).
@@ -13,7 +14,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.sources.serial.errors import ChecksumError, FrameError
+from pipeline.sources.serial.errors import ChecksumError, EncodeError, FrameError
+from pipeline.sources.serial.rplidar import (
+    NODE_BYTES,
+    Q6_PER_TURN,
+    SYNC_BYTE,
+    Request,
+    StandardNodes,
+    decode_nodes,
+    encode_nodes,
+    encode_request,
+    node_validity,
+    parse_request,
+)
 from pipeline.sources.serial.rplidar_capsule import (
     CAPSULE_BYTES,
     NODES_PER_CAPSULE,
@@ -33,6 +46,7 @@ from pipeline.sources.serial.scip import (
 
 SCIP = ["pipeline/sources/serial/scip.py"]
 CAPSULE = ["pipeline/sources/serial/rplidar_capsule.py"]
+STANDARD = ["pipeline/sources/serial/rplidar.py"]
 
 
 def _signed(payload: bytes) -> bytes:
@@ -153,3 +167,94 @@ def test_a_capsule_of_the_wrong_length_is_a_frame_error_naming_its_length() -> N
     with pytest.raises(ChecksumError) as defaulted:
         decode_capsule(bytes(CAPSULE_BYTES))
     assert defaulted.value.offset == 0
+
+
+# -- RPLIDAR standard nodes and requests -----------------------------------------------------
+
+
+def _nodes(angle_q6: list[int]) -> bytes:
+    n = len(angle_q6)
+    return encode_nodes(
+        StandardNodes(
+            start=np.zeros(n, dtype=np.bool_),
+            quality=np.full(n, 47, dtype=np.int64),
+            angle_q6=np.asarray(angle_q6, dtype=np.int64),
+            distance_q2=np.full(n, 4000, dtype=np.int64),
+        )
+    )
+
+
+@pytest.mark.requirement("SR-DRV-2", code=STANDARD)
+def test_a_node_at_360_degrees_is_invalid_and_one_q6_step_below_is_not() -> None:
+    data = _nodes([0, Q6_PER_TURN - 1, Q6_PER_TURN])
+    raw = np.frombuffer(data, dtype=np.uint8).reshape(-1, NODE_BYTES)
+    assert node_validity(raw).tolist() == [True, True, False]
+    with pytest.raises(ChecksumError) as raised:
+        decode_nodes(data, offset=100)
+    assert raised.value.offset == 100 + 2 * NODE_BYTES
+    assert raised.value.reason == (
+        f"rplidar node 2: start-flag pair, check bit or angle invalid (bytes {data[10:].hex()})"
+    )
+
+
+@pytest.mark.requirement("SR-DRV-2", code=STANDARD)
+def test_nodes_decode_from_a_strided_array_as_from_bytes() -> None:
+    data = _nodes([64 * a for a in (0, 90, 180, 359)])
+    spread = np.zeros(2 * len(data), dtype=np.uint8)
+    spread[::2] = np.frombuffer(data, dtype=np.uint8)
+    view = spread[::2]  # not contiguous: no buffer to read bytes from
+    assert not view.flags.c_contiguous
+    ours, theirs = decode_nodes(view), decode_nodes(data)
+    for name in ("start", "quality", "angle_q6", "distance_q2"):
+        np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name), err_msg=name)
+    np.testing.assert_array_equal(theirs.angle_q6, [0, 5760, 11520, 22976])
+
+
+@pytest.mark.requirement("SR-DRV-2", code=STANDARD)
+def test_bytes_that_are_not_whole_nodes_are_a_frame_error_naming_the_count() -> None:
+    with pytest.raises(FrameError) as raised:
+        decode_nodes(_nodes([0, 64])[:-1], offset=3)
+    assert type(raised.value) is FrameError
+    assert raised.value.offset == 3
+    assert raised.value.reason == f"rplidar nodes: 9 bytes is not a multiple of {NODE_BYTES}"
+
+
+@pytest.mark.requirement("SR-DRV-2", code=STANDARD)
+def test_a_request_takes_any_byte_as_command_and_up_to_255_payload_bytes() -> None:
+    assert encode_request(0x7F) == bytes((SYNC_BYTE, 0x7F))
+    longest = encode_request(0xFF, bytes(255))
+    assert parse_request(longest) == (Request(0xFF, bytes(255)), len(longest))
+    for cmd, payload, reason in (
+        (256, b"", "rplidar request: cmd 256 is not a byte"),
+        (-1, b"", "rplidar request: cmd -1 is not a byte"),
+        (0x25, b"x", "rplidar request: cmd 0x25 takes no payload"),
+        (0x84, bytes(256), "rplidar request: payload of 256 bytes exceeds 255"),
+    ):
+        with pytest.raises(EncodeError) as raised:
+            encode_request(cmd, payload)
+        assert raised.value.reason == reason
+
+
+@pytest.mark.requirement("SR-DRV-2", code=STANDARD)
+def test_a_request_short_of_its_end_at_an_offset_waits_for_more_bytes() -> None:
+    stop, express = encode_request(0x25), encode_request(0x82, bytes(5))
+    buf = stop + express
+    at = len(stop)
+    assert parse_request(buf, 0) == (Request(0x25), 2)
+    assert parse_request(buf, at) == (Request(0x82, bytes(5)), len(express))
+    for cut in range(at, len(buf)):  # every prefix of the second request: not yet complete
+        assert parse_request(buf[:cut], at) == (None, 0), cut
+    bad = bytearray(buf)
+    bad[at] = 0x5A
+    with pytest.raises(FrameError) as frame:
+        parse_request(bytes(bad), at)
+    assert frame.value.offset == at
+    assert frame.value.reason == "rplidar request: sync byte 0x5A, expected 0xA5"
+    wrong = bytearray(buf)
+    wrong[-1] ^= 0x01
+    with pytest.raises(ChecksumError) as checksum_error:
+        parse_request(bytes(wrong), at)
+    assert checksum_error.value.offset == len(buf) - 1
+    assert checksum_error.value.reason == (
+        f"rplidar request 0x82: checksum 0x{wrong[-1]:02X}, expected 0x{buf[-1]:02X}"
+    )
