@@ -24,7 +24,7 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from evidence.cli.common import ConfigOption, fail, load_config_or_exit, out
+from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out
 from pipeline.config import SafecaseConfig
 from safety.campaign import (
     CampaignError,
@@ -101,7 +101,7 @@ def campaign_command(
 
     Exit codes: 0 done, no contact while moving and no run failed; 1 a contact while moving or
     a run that raised (each listed); 2 bad options or configuration, a file of another
-    configuration, an unreachable scheduler.
+    configuration, an unreachable scheduler; 130 interrupted (Ctrl-C), the finished runs kept.
     """
     from pipeline.distributed import open_client  # Dask loads only for this command
 
@@ -127,6 +127,16 @@ def campaign_command(
                 _run(client, cfg, plan, log, len(todo), oracle=oracle, shadow=shadow)
         except OSError as exc:
             fail(str(exc))
+        except KeyboardInterrupt:
+            # Every finished run is already in the file; the same command resumes from it.
+            done = len(plan) - len(pending(plan, log))
+            err.print(
+                f"interrupted: {done} of {len(plan)} runs are in {output}; "
+                "the same command resumes with the rest",
+                highlight=False,
+                markup=False,
+            )
+            raise typer.Exit(130) from None
     keys = {e.key for e in plan}
     _report([r for r in log.rows if r.encounter.key in keys], output, plot)
 

@@ -306,6 +306,34 @@ def test_the_command_refuses_bad_input(tmp_path: Path) -> None:
 
 
 @pytest.mark.requirement("SR-RUN-8", kind="example", code=["evidence/cli/campaign.py"])
+def test_ctrl_c_keeps_the_finished_runs_and_says_how_to_resume(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import evidence.cli.campaign as command
+
+    def one_then_interrupted(
+        client: object,
+        cfg: object,
+        plan: list[Encounter],
+        log: CampaignLog,
+        *args: object,
+        **kwargs: object,
+    ) -> None:
+        log.add(failed_row(plan[0], "E: stands in for a finished run"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "_run", one_then_interrupted)
+    target = tmp_path / "c.jsonl"
+    result = CliRunner().invoke(
+        app, ["campaign", "--encounters", "3", "--workers", "1", "--out", str(target)]
+    )
+    assert result.exit_code == 130, result.output
+    assert f"interrupted: 1 of 3 runs are in {target}" in result.output
+    assert "resumes" in result.output
+    assert len(target.read_text().splitlines()) == 2  # the header and the finished run
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["evidence/cli/campaign.py"])
 def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
     target = tmp_path / "c.jsonl"
     args = ["campaign", "--encounters", "2", "--duration", "1", "--workers", "1"]
