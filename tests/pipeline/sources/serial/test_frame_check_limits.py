@@ -108,8 +108,8 @@ def test_info_lines_are_parsed_whichever_way_the_device_sums_them() -> None:
 @pytest.mark.requirement("SR-DRV-2", code=SCIP)
 @pytest.mark.parametrize(
     "line",
-    [b";:", b"AB", b"PROT;SCIP;X", b"PROT:SCIP2", b"PROT:SCIP;"],
-    ids=["two bytes", "no colon, too short", "no colon", "no semicolon", "no checksum"],
+    [b";:", b"AB", b"PROT;SCIP;X", b"PROT:SCIP2", b"PROT:SCIP;", b"MODL;" + b"U" * 60],
+    ids=["two bytes", "no colon, too short", "no colon", "no semicolon", "no checksum", "long"],
 )
 def test_a_malformed_info_line_is_a_frame_error_not_a_checksum_error(line: bytes) -> None:
     with pytest.raises(FrameError) as raised:
