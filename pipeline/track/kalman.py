@@ -23,21 +23,10 @@ __all__ = [
     "predict",
     "process_noise",
     "reacquire",
-    "transition",
     "update",
 ]
 
 _H_ROWS = 2
-
-
-def transition(dt_s: FloatArray) -> FloatArray:
-    """State transition matrices ``F`` (n, 4, 4) for per-track time steps ``dt_s`` (n,)."""
-    n = dt_s.shape[0]
-    f = np.zeros((n, 4, 4))
-    f[:, [0, 1, 2, 3], [0, 1, 2, 3]] = 1.0
-    f[:, 0, 2] = dt_s
-    f[:, 1, 3] = dt_s
-    return f
 
 
 def process_noise(dt_s: FloatArray, accel_std_mps2: float) -> FloatArray:
