@@ -83,6 +83,7 @@ TARGETS: tuple[Target, ...] = (
     Target("pipeline/track/tracker.py", "stages"),
     Target("pipeline/track/metrics.py", "stages"),
     Target("pipeline/predict.py", "stages"),
+    Target("pipeline/static_map.py", "stages"),
     # The drivers' frame checks only: checksums, check bits, sync nibbles.
     Target(
         "pipeline/sources/serial/rplidar.py",

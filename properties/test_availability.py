@@ -120,6 +120,10 @@ def test_ours_oracle_and_baseline_side_by_side(campaign: Campaign, evidence: Rec
         evidence.counts(f"contacts ({role})", {"all": total, "while moving": moving})
     evidence.counts("nuisance STOPs by cause", dict(campaign.nuisance_causes()))
     evidence.counts(
+        "speed given up against the shadow oracle, by what set our command [m]",
+        {k: round(v, 2) for k, v in campaign.speed_given_up_m().items()},
+    )
+    evidence.counts(
         "campaign",
         {
             "progress vs oracle (ours)": round(campaign.total_progress_share(), 4),
@@ -139,6 +143,11 @@ def test_ours_oracle_and_baseline_side_by_side(campaign: Campaign, evidence: Rec
     for c in runs:
         # A nuisance STOP is one of our STOPs, and the shadow decided on every one of our cycles.
         assert c.nuisance_cycles <= c.ours.actions.get("STOP", 0), (c.name, c.seed)
+        # What we gave up counts only the cycles where the shadow was faster: at least the net.
+        net = sum(row[4] - row[2] for row in c.shadow.rows) * c.period_s
+        given = c.speed_given_up_m()
+        assert sum(given.values()) >= net - 1e-9, (c.name, c.seed)
+        assert set(given) <= {row[5] for row in c.shadow.rows}, (c.name, c.seed)
         assert len(c.shadow.rows) == c.ours.cycles
 
 
@@ -169,19 +178,23 @@ def test_nuisance_stops_within_two_percent(campaign: Campaign) -> None:
 
 
 @pytest.mark.requirement("SR-AVL-1", kind="example", code=["safety/runtime.py", *CODE])
+@pytest.mark.requirement("SR-AVL-8", kind="campaign", code=["safety/bodies.py"])
 def test_each_lever_measured_before_and_after(
     safecase_config: SafecaseConfig,
     classifier: Classifier,
     campaign: Campaign,
     evidence: Recorder,
 ) -> None:
-    """Our run with each availability lever switched off (``ci``: both at once, on the first
-    run; ``certify``: each, and both, on every seed-0 run), beside the campaign's (all on):
+    """Our run with each availability lever switched off (``ci``: all at once, on the first
+    run; ``certify``: each, and all, on every seed-0 run), beside the campaign's (all on):
     the oracle and the baseline are the campaign's, only ours is rerun."""
     config = safecase_config
     reid = overridden(config, {"track": {"reid_enabled": True}})
     settings_ = {
-        "both off": (Levers(directed_closing=False, outline_bodies=False), config),
+        "all off": (
+            Levers(directed_closing=False, outline_bodies=False, mapped_structure=False),
+            config,
+        ),
         "re-identification on": (Levers(), reid),
     }
     chosen = campaign.comparisons[:1]
@@ -191,6 +204,7 @@ def test_each_lever_measured_before_and_after(
         settings_ = {
             "directed closing off": (Levers(directed_closing=False), config),
             "outline bodies off": (Levers(outline_bodies=False), config),
+            "mapped structure off": (Levers(mapped_structure=False), config),
             **settings_,
         }
     durations = {(n, s): d for n, s, d in _runs()}

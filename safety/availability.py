@@ -36,7 +36,7 @@ from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.simulation import SimResult, Simulation
 from pipeline.types import Action, PredictionMode
 from safety.baseline import Nav2Baseline
-from safety.run import RunSummary, contact_speeds, run_simulation
+from safety.run import RunSummary, contact_speeds, run_simulation, site_map
 from safety.runtime import CycleInput, CycleOutput, Levers, Runtime
 
 __all__ = [
@@ -250,6 +250,17 @@ class Comparison:
         flags = self.shadow.nuisance()
         return Counter(row[5] for row, flag in zip(self.shadow.rows, flags, strict=True) if flag)
 
+    def speed_given_up_m(self) -> dict[str, float]:
+        """Per cause of our command, largest first: the distance our commands gave up against
+        the shadow oracle's on the same frames [m], the sum over cycles of (its speed - ours) x
+        the scan period where it commanded faster. A diagnostic, not progress: the robot does
+        not reach a commanded speed at once, and the oracle's own run drives other frames."""
+        lost: dict[str, float] = {}
+        for _, _, ours, _, theirs, cause in self.shadow.rows:
+            if theirs > ours:
+                lost[cause] = lost.get(cause, 0.0) + (theirs - ours) * self.period_s
+        return dict(sorted(lost.items(), key=lambda kv: -kv[1]))
+
 
 def run_ours(
     config: SafecaseConfig,
@@ -260,7 +271,7 @@ def run_ours(
     """``sim`` in closed loop with the runtime as configured (``levers``: the runtime's), and
     the shadow oracle that decided on its frames."""
     shadow = Shadow.for_simulation(config, sim, classifier)
-    ours = Runtime(config, classifier=classifier, levers=levers)
+    ours = Runtime(config, classifier=classifier, levers=levers, static_map=site_map(config, sim))
     return run_simulation(config, sim, runtime=ours, observe=shadow.observer(ours)), shadow
 
 
@@ -387,3 +398,11 @@ class Campaign:
         for c in self.comparisons:
             total.update(c.nuisance_causes())
         return total
+
+    def speed_given_up_m(self) -> dict[str, float]:
+        """:meth:`Comparison.speed_given_up_m`, all runs together [m], largest first."""
+        total: dict[str, float] = {}
+        for c in self.comparisons:
+            for cause, metres in c.speed_given_up_m().items():
+                total[cause] = total.get(cause, 0.0) + metres
+        return dict(sorted(total.items(), key=lambda kv: -kv[1]))

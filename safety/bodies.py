@@ -15,7 +15,16 @@ grown by ``predict.velocity_sigmas`` position sigmas holds them):
 * **still and not seen** (:class:`StillHulls`): a still object (stationary or static class)
   whose track coasts keeps the hull it was last seen with, moved by the track's displacement
   since then and grown by its current (coasting, so growing) position uncertainty, for at most
-  ``track.dormant_after_misses`` cycles of coasting (a dormant track gets no prediction).
+  ``track.dormant_after_misses`` cycles of coasting (a dormant track gets no prediction);
+* **on the site's map** (:func:`mapped_rows`, SR-AVL-8): an object of unknown motion whose
+  cluster this cycle lies wholly on the static map (every return covered,
+  :func:`pipeline.static_map.clusters_on_map`) is the mapped structure, which does not move:
+  the governor reads the distance along the path to its hull body, as for a still object,
+  instead of the distance in any direction; its closing speed and margin stay those of an
+  object of unknown motion. Nor is a track last updated by such a cluster (this cycle, or
+  coasting since, :class:`OnMapMemory`) held to the object-speed domain
+  (:func:`safety.obstacles.faster_than_the_domain`): a fragment of a rack face whose visible
+  part slides along the face as the robot drives by is not an object moving that fast.
 
 Hulls are in the tracking frame (the clusters' robot frame moved by the pose).
 """
@@ -28,6 +37,7 @@ import numpy as np
 
 from pipeline.config import PredictSection
 from pipeline.frames import Pose, to_parent
+from pipeline.static_map import StaticMap, clusters_on_map
 from pipeline.track.kalman import largest_std
 from pipeline.types import (
     BoolArray,
@@ -37,12 +47,21 @@ from pipeline.types import (
     IntArray,
     PredictionMode,
     Predictions,
+    ScanPoints,
     Tracks,
 )
 from safety.geometry.envelopes import grown_polygons
-from safety.obstacles import with_columns
+from safety.obstacles import bodies_now, with_columns
 
-__all__ = ["StillHulls", "cluster_hulls", "hull_bodies"]
+__all__ = [
+    "OnMapMemory",
+    "StillHulls",
+    "cluster_hulls",
+    "hull_bodies",
+    "mapped_rows",
+    "mapped_zones",
+    "tracks_on_map",
+]
 
 
 def cluster_hulls(clusters: Clusters, index: IntArray, pose: Pose) -> FloatArray:
@@ -59,9 +78,14 @@ def cluster_hulls(clusters: Clusters, index: IntArray, pose: Pose) -> FloatArray
 def _seen(pred: Predictions, tracks: Tracks, clusters: Clusters) -> tuple[IntArray, IntArray]:
     """Per prediction row: its track's row and the cluster that updated it this cycle (-1)."""
     row = np.searchsorted(tracks.track_id, pred.track_id)
-    det = tracks.detection_index[row]
-    det = np.where((det >= 0) & (det < clusters.n), det, -1)
-    return row, det
+    return row, _updating_cluster(tracks, clusters)[row]
+
+
+def _updating_cluster(tracks: Tracks, clusters: Clusters) -> IntArray:
+    """Per track: the cluster that updated it this cycle, or -1."""
+    det = tracks.detection_index
+    found: IntArray = np.where((det >= 0) & (det < clusters.n), det, -1)
+    return found
 
 
 def hull_bodies(
@@ -87,6 +111,71 @@ def hull_bodies(
     hulls = cluster_hulls(clusters, det[which], pose)
     grown = grown_polygons(hulls, sigma, predict_section.disc_sides)
     return with_columns(bodies, np.flatnonzero(seen), grown)
+
+
+def tracks_on_map(
+    tracks: Tracks, clusters: Clusters, points: ScanPoints, pose: Pose, static_map: StaticMap
+) -> BoolArray:
+    """Per track: updated this cycle by a cluster lying wholly on ``static_map`` (module
+    docstring; points and clusters in the robot frame, the map in the tracking frame)."""
+    det = _updating_cluster(tracks, clusters)
+    x_m, y_m = to_parent(pose, points.x_m, points.y_m)
+    on = clusters_on_map(static_map, clusters.point_labels, x_m, y_m, clusters.n)
+    found: BoolArray = (det >= 0) & on[np.maximum(det, 0)]
+    return found
+
+
+def mapped_rows(rows: BoolArray, pred: Predictions, tracks: Tracks, on_map: BoolArray) -> BoolArray:
+    """The prediction rows among ``rows`` whose track is ``on_map`` (:func:`tracks_on_map`)."""
+    found: BoolArray = rows & on_map[np.searchsorted(tracks.track_id, pred.track_id)]
+    return found
+
+
+def mapped_zones(
+    zones: ConvexPolygons,
+    mapped: BoolArray,
+    pred: Predictions,
+    tracks: Tracks,
+    clusters: Clusters,
+    pose: Pose,
+    predict_section: PredictSection,
+) -> ConvexPolygons:
+    """``zones`` (one per prediction row) with each ``mapped`` row's replaced by its cluster's
+    hull grown by its position uncertainty (the body of :func:`hull_bodies`)."""
+    if not mapped.any():
+        return zones
+    sides = predict_section.disc_sides
+    hulls = hull_bodies(
+        mapped,
+        bodies_now(pred, tracks, mapped, sides),
+        pred,
+        tracks,
+        clusters,
+        pose,
+        predict_section,
+    )
+    return with_columns(zones, np.flatnonzero(mapped), hulls)
+
+
+@dataclass
+class OnMapMemory:
+    """Per track, whether the cluster that last updated it lay wholly on the map (SR-AVL-8):
+    a track coasting since such an update was last seen as the fixed structure."""
+
+    _last: dict[int, bool] = field(default_factory=dict)
+
+    def update(self, track_id: IntArray, detection_index: IntArray, on_map: BoolArray) -> BoolArray:
+        """Per track (``Tracks.track_id``, ``Tracks.detection_index``): updated this cycle by a
+        cluster on the map (``on_map``, from :func:`tracks_on_map`), or not updated since such
+        an update; forgets tracks no longer listed."""
+        updated = detection_index >= 0
+        last: dict[int, bool] = {}
+        out = np.zeros(track_id.shape, dtype=bool)
+        for k, tid in enumerate(track_id.tolist()):
+            last[tid] = bool(on_map[k]) if updated[k] else self._last.get(tid, False)
+            out[k] = last[tid]
+        self._last = last
+        return out
 
 
 @dataclass

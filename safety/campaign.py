@@ -41,7 +41,7 @@ from pipeline.jsoncodec import dumps
 from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
 from pipeline.sources.sim.simulation import BOUNDED, Simulation
 from safety.availability import Comparison, run_oracle, run_ours
-from safety.run import contact_speeds, run_simulation
+from safety.run import contact_speeds, run_simulation, site_map
 from safety.runtime import Runtime
 
 if TYPE_CHECKING:
@@ -232,7 +232,11 @@ def run_encounter(
         causes = Counter(row[5] for row, flag in zip(watcher.rows, flags, strict=True) if flag)
         nuisance: int | None = sum(flags)
     else:
-        summary = run_simulation(config, sim, runtime=Runtime(config, classifier=model))
+        summary = run_simulation(
+            config,
+            sim,
+            runtime=Runtime(config, classifier=model, static_map=site_map(config, sim)),
+        )
         causes, nuisance = Counter(), None
     result = summary.sim
     assert result is not None  # run_simulation always sets it

@@ -1,6 +1,7 @@
 """What one runtime cycle reads and gives back (SR-RUN-*): its input, its output and the
-detail a recording keeps, and the availability levers a runtime is built with. The cycle itself
-is :class:`safety.runtime.Runtime`."""
+detail a recording keeps, the availability levers a runtime is built with, what its safety
+stages produced and the summary parts of its audit record. The cycle itself is
+:class:`safety.runtime.Runtime`."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ from typing import Any
 from pipeline.config import SafecaseConfig
 from pipeline.errors import SafecaseError
 from pipeline.frames import Pose
-from pipeline.perception import Perceived
+from pipeline.perception import Partial, Perceived
 from pipeline.types import (
+    Action,
     Command,
     DriverHealth,
     Envelopes,
@@ -27,9 +29,19 @@ from pipeline.types.sensors import Twist
 from safety.audit.log import CycleRecord
 from safety.geometry.costmap import Costmap
 from safety.geometry.path import PathAhead, PathDistances
-from safety.model.decision import Decision
+from safety.model.decision import Decision, GovernorInputs
+from safety.model.monitors import MonitorVerdict
 
-__all__ = ["CycleDetail", "CycleInput", "CycleInputError", "CycleOutput", "Levers"]
+__all__ = [
+    "CycleDetail",
+    "CycleInput",
+    "CycleInputError",
+    "CycleOutput",
+    "Levers",
+    "SafetySide",
+    "alert_part",
+    "fold_parts",
+]
 
 
 class CycleInputError(SafecaseError, ValueError):
@@ -122,9 +134,69 @@ class CycleOutput:
 
 @dataclass(frozen=True)
 class Levers:
-    """The availability levers (SR-AVL-5, SR-AVL-6), each proved or argued not to weaken a
-    safety obligation: ``directed_closing`` (:mod:`safety.closing`) and ``outline_bodies``
-    (:mod:`safety.bodies`)."""
+    """The availability levers (SR-AVL-5, SR-AVL-6, SR-AVL-8), each proved or argued not to
+    weaken a safety obligation: ``directed_closing`` (:mod:`safety.closing`), ``outline_bodies``
+    and ``mapped_structure`` (:mod:`safety.bodies`; it acts only where the runtime has a site
+    map)."""
 
     directed_closing: bool = True
     outline_bodies: bool = True
+    mapped_structure: bool = True
+
+
+@dataclass(frozen=True)
+class SafetySide:
+    """What the safety stages of one cycle produced, for the decision and the record (the
+    path, planner and costmap parts are the record's summaries)."""
+
+    inputs: GovernorInputs
+    envelopes: Envelopes
+    distances: PathDistances
+    excess_obstacles: int
+    path: dict[str, Any]
+    planner: dict[str, Any] | None
+    costmap: dict[str, Any] | None
+    grid: Costmap | None
+
+
+def alert_part(alert: object, caution: MonitorVerdict) -> dict[str, Any]:
+    """The audit record's summary of an acoustic alert and whether it capped the speed (an
+    input that is not an alert is named, never read: its verdict is already a STOP)."""
+    if not isinstance(alert, AcousticAlert):
+        return {"invalid": type(alert).__name__, "caution": True}
+    return {
+        "kind": alert.kind.value,
+        "bearing_rad": alert.bearing_rad,
+        "confidence": alert.confidence,
+        "stamp_s": alert.stamp_s,
+        "caution": caution.action is not Action.PROCEED,
+    }
+
+
+def fold_parts(
+    parts: dict[str, Any],
+    over_cap: list[tuple[str, int]],
+    partial: Partial,
+    side: SafetySide | None,
+) -> None:
+    """The audit record's summary parts and the over-cap counts, from what the cycle reached."""
+    if partial.points is not None:
+        parts["drops"] = partial.points.drops
+    if partial.clusters is not None:
+        parts["clusters"] = partial.clusters.counts
+        over_cap.append(("cluster.max_clusters", partial.clusters.counts.n_over_cap))
+    if partial.counts is not None:
+        parts["tracker"] = partial.counts
+        over_cap.append(("track.max_detections", partial.counts.n_detections_dropped))
+        over_cap.append(("track.max_tracks", partial.counts.n_births_refused))
+    if partial.fused is not None:
+        parts["fusion"] = partial.fused.counts
+        over_cap.append(("fusion.max_thermal", partial.fused.counts.n_thermal_over_cap))
+        over_cap.append(("fusion.max_radar", partial.fused.counts.n_radar_over_cap))
+    if side is not None:
+        parts["path"] = side.path
+        over_cap.append(("geometry.max_obstacles", side.excess_obstacles))
+        if side.planner is not None:
+            parts["planner"] = side.planner
+        if side.costmap is not None:
+            parts["costmap"] = side.costmap

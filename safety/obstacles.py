@@ -108,14 +108,19 @@ def still_zones(
 
 
 def faster_than_the_domain(
-    tracks: Tracks, predict_section: PredictSection
+    tracks: Tracks, predict_section: PredictSection, on_map: BoolArray | None = None
 ) -> MonitorVerdict | None:
     """STOP when a confirmed track is certainly faster (speed minus ``velocity_sigmas``
-    sigmas) than ``predict.max_object_speed_mps``: the predictions assume no such object."""
+    sigmas) than ``predict.max_object_speed_mps``: the predictions assume no such object.
+    Tracks ``on_map`` (last updated by a cluster lying wholly on the site's map,
+    :class:`safety.bodies.OnMapMemory`) were last seen as the fixed structure and are not
+    checked."""
     pc = predict_section
     speed = np.hypot(tracks.state[:, 2], tracks.state[:, 3])
     low = speed - pc.velocity_sigmas * largest_std(tracks.covariance[:, 2:, 2:])
     fast = (tracks.status == int(TrackStatus.CONFIRMED)) & (low > pc.max_object_speed_mps)
+    if on_map is not None:
+        fast &= ~on_map
     if not fast.any():
         return None
     i = int(np.flatnonzero(fast)[np.argmax(low[fast])])

@@ -18,6 +18,7 @@ contact, minimum separations, progress) beside the runtime's (commands, reasons,
 from __future__ import annotations
 
 import contextlib
+import hashlib
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ from pipeline.sources import ClosedLoopSource, FrameSource
 from pipeline.sources.sim.rig import sim_source
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.simulation import SimResult, Simulation
+from pipeline.static_map import StaticMap, checked_map, map_from_config
 from pipeline.types import FloatArray, Frame
 from safety.audit.log import AuditWriter, BackgroundAuditWriter
 from safety.foxglove import McapRecorder
@@ -49,6 +51,7 @@ __all__ = [
     "run_audited",
     "run_scenario",
     "run_simulation",
+    "site_map",
 ]
 
 
@@ -206,6 +209,7 @@ def run_audited(
     measured_clock: bool = False,
     recording: Path | None = None,
     observe: Callable[[CycleInput, CycleOutput], None] | None = None,
+    static_map: StaticMap | None = None,
 ) -> Iterator[CycleOutput]:
     """:func:`run` with one audit record per cycle in ``audit_path`` (none when None) and,
     with ``recording``, every cycle in that MCAP file for Foxglove (:mod:`safety.foxglove`,
@@ -217,7 +221,8 @@ def run_audited(
     :class:`~safety.audit.keys.SigningKeyError` naming its path before any cycle runs and
     before the log is created. A live source's log is written off the cycle's thread (fsync
     stalls of 15-100 ms here). An audit log needs a :class:`~safety.runtime.Runtime` (its
-    records replay); ``observe`` is :func:`run`'s.
+    records replay); ``observe`` is :func:`run`'s; ``static_map`` the site map of a runtime
+    made here (default: ``map.file``'s).
     """
     from safety.audit.log import signing_key_for
 
@@ -226,7 +231,11 @@ def run_audited(
     key = signing_key_for(config.audit) if audit_path is not None else None
 
     def cycles() -> Iterator[CycleOutput]:
-        rt = runtime if runtime is not None else Runtime(config, params=params)
+        rt = (
+            runtime
+            if runtime is not None
+            else Runtime(config, params=params, static_map=static_map)
+        )
         with contextlib.ExitStack() as stack:
             if audit_path is not None:
                 assert isinstance(rt, Runtime)
@@ -262,6 +271,34 @@ def run_audited(
     return cycles()
 
 
+def site_map(config: SafecaseConfig, sim: Simulation) -> StaticMap | None:
+    """The map a runtime in ``sim`` is given (SR-AVL-8): ``map.file``'s when set, else with
+    ``map.simulated_world`` the world's fixed structure rasterised at ``map.resolution_m``,
+    else none."""
+    section = config.map
+    if section.file or not section.simulated_world:
+        return map_from_config(config)
+    outline = sim.world.structure.outline
+    key = (
+        hashlib.sha256(outline.vertices_m.tobytes() + outline.part_starts.tobytes()).hexdigest(),
+        section.resolution_m,
+        section.tolerance_m,
+    )
+    if key not in _WORLD_MAPS:
+        if len(_WORLD_MAPS) >= _WORLD_MAPS_KEPT:
+            _WORLD_MAPS.pop(next(iter(_WORLD_MAPS)))
+        raster = StaticMap.from_parts(
+            list(outline.parts()), section.resolution_m, section.tolerance_m, f"sim:{sim.name}"
+        )
+        _WORLD_MAPS[key] = checked_map(raster, config)
+    return _WORLD_MAPS[key]
+
+
+# Rasterising a world takes about 0.3 s; campaigns run many encounters in few layouts.
+_WORLD_MAPS: dict[tuple[str, float, float], StaticMap] = {}
+_WORLD_MAPS_KEPT = 8
+
+
 def run_simulation(
     config: SafecaseConfig,
     sim: Simulation,
@@ -276,7 +313,8 @@ def run_simulation(
     """Run ``sim`` to its end with the runtime deciding after every scan (module docstring).
 
     ``observe`` is :func:`run`'s. With ``scan2.enabled`` the robot has its second scanner too
-    (:func:`~pipeline.sources.sim.second_lidar.sim_source`).
+    (:func:`~pipeline.sources.sim.second_lidar.sim_source`). A runtime made here has the site
+    map of :func:`site_map`.
     """
     source = sim_source(config, sim)
     summary = RunSummary(sim.name, audit_path=audit_path)
@@ -288,6 +326,7 @@ def run_simulation(
         runtime=runtime,
         measured_clock=measured_clock,
         observe=observe,
+        static_map=site_map(config, sim),
     ):
         summary.add(out)
         if progress is not None:

@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -55,20 +55,36 @@ from pipeline.perception import (
     StageError,
     Stopwatch,
 )
+from pipeline.static_map import StaticMap, map_from_config
 from pipeline.types import (
     Action,
+    BoolArray,
     Command,
-    Envelopes,
     PredictionMode,
 )
-from pipeline.types.acoustic import AcousticAlert
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
-from safety.bodies import StillHulls, hull_bodies
+from safety.bodies import (
+    OnMapMemory,
+    StillHulls,
+    hull_bodies,
+    mapped_rows,
+    mapped_zones,
+    tracks_on_map,
+)
 from safety.closing import directed_closing
-from safety.cycle import CycleDetail, CycleInput, CycleInputError, CycleOutput, Levers
-from safety.geometry.costmap import Costmap, CostmapBuilder
+from safety.cycle import (
+    CycleDetail,
+    CycleInput,
+    CycleInputError,
+    CycleOutput,
+    Levers,
+    SafetySide,
+    alert_part,
+    fold_parts,
+)
+from safety.geometry.costmap import CostmapBuilder
 from safety.geometry.envelopes import EnvelopeBuilder
-from safety.geometry.path import PathClearance, PathDistances
+from safety.geometry.path import PathClearance
 from safety.geometry.swept import SweptPathChecker
 from safety.model.braking import BrakingWatch
 from safety.model.caution import caution_verdict
@@ -112,6 +128,8 @@ class Runtime:
     :class:`pipeline.oracle.GroundTruthPerception`: the availability oracle, SR-AVL-1); the
     safety side, the governor and the monitors stay the same. ``levers`` switches the
     availability levers (all on by default; off only to measure what each one buys).
+    ``static_map`` is the site's map (default: ``map.file``'s, none when it is empty; a
+    simulated run passes its world's, :func:`safety.run.site_map`).
     """
 
     def __init__(
@@ -123,8 +141,10 @@ class Runtime:
         writer: AuditWriter | BackgroundAuditWriter | None = None,
         perception: PerceptionChain | None = None,
         levers: Levers | None = None,
+        static_map: StaticMap | None = None,
     ) -> None:
         self.config = config
+        self.static_map = static_map if static_map is not None else map_from_config(config)
         self.levers = levers if levers is not None else Levers()
         self.params = params if params is not None else StoppingParams.from_config(config)
         self.classifier = (
@@ -141,6 +161,7 @@ class Runtime:
         self.planner = SweptPathChecker(config.geometry)
         self.costmap = CostmapBuilder(config.costmap)
         self.still_hulls = StillHulls(config.track.dormant_after_misses)
+        self.on_map_memory = OnMapMemory()
         self.writer = writer
         self.previous_now_s: float | None = None
         # When the STOP in force was decided (None while moving) and the braking it buys.
@@ -166,7 +187,7 @@ class Runtime:
         parts: dict[str, Any] = {"scan": inp.scan}
         over_cap: list[tuple[str, int]] = []
         partial = Partial()
-        safety_side: _SafetySide | None = None
+        safety_side: SafetySide | None = None
         perceived: Perceived | None = None
         try:
             perceived = self.perception.perceive(
@@ -175,10 +196,13 @@ class Runtime:
             partial = Partial(
                 perceived.points, perceived.clusters, perceived.tracked.counts, perceived.fused
             )
-            too_fast = faster_than_the_domain(perceived.fused.tracks, self.config.predict)
+            on_map = self._on_map(perceived)
+            tracks = perceived.fused.tracks
+            seen_on_map = self.on_map_memory.update(tracks.track_id, tracks.detection_index, on_map)
+            too_fast = faster_than_the_domain(tracks, self.config.predict, seen_on_map)
             if too_fast is not None:
                 stage_verdicts.append(too_fast)
-            safety_side = self._safety_side(inp, perceived, elapsed_s, watch)
+            safety_side = self._safety_side(inp, perceived, on_map, elapsed_s, watch)
             inputs = safety_side.inputs
         except StageError as exc:  # a failing stage stops the robot with the reason
             stage_verdicts.append(MonitorVerdict.stop(f"stage:{exc.stage}", str(exc)))
@@ -187,7 +211,7 @@ class Runtime:
             stage_verdicts.append(
                 MonitorVerdict.stop(f"stage:{watch.current}", f"{type(exc).__name__}: {exc}")
             )
-        _fold_parts(parts, over_cap, partial, safety_side)
+        fold_parts(parts, over_cap, partial, safety_side)
         with watch.stage("decide"):
             duration = elapsed_s() + inp.delay_s
             decision_now = inp.now_s + duration
@@ -218,7 +242,7 @@ class Runtime:
                     decision_now, inp.acoustic, self.config.acoustic, self.governor.max_speed_mps
                 )
                 stage_verdicts.append(caution)
-                parts["acoustic"] = _alert_part(inp.acoustic, caution)
+                parts["acoustic"] = alert_part(inp.acoustic, caution)
             second = None if perceived is None else perceived.tracked.second
             if second is not None:
                 # A second scanner's points count only while fresh at decision time (SR-LID-2).
@@ -258,13 +282,24 @@ class Runtime:
             CycleDetail(inp, perceived, None if safety_side is None else safety_side.grid),
         )
 
+    def _on_map(self, perceived: Perceived) -> BoolArray:
+        """Per track: updated by a cluster lying wholly on the site's map (none without a map
+        or with the lever off; SR-AVL-8)."""
+        tracks = perceived.fused.tracks
+        if not self.levers.mapped_structure or self.static_map is None:
+            return np.zeros(tracks.track_id.shape, dtype=bool)
+        return tracks_on_map(
+            tracks, perceived.clusters, perceived.points, perceived.pose, self.static_map
+        )
+
     def _safety_side(
         self,
         inp: CycleInput,
         perceived: Perceived,
+        on_map: BoolArray,
         elapsed_s: Callable[[], float],
         watch: Stopwatch,
-    ) -> _SafetySide:
+    ) -> SafetySide:
         """Envelopes, path clearance, the planner's check and the costmap: the governor's
         inputs from what perception saw (module docstring)."""
         config = self.config
@@ -288,11 +323,15 @@ class Runtime:
                 zones = self.still_hulls.zones(
                     zones, pred, fused.tracks, clusters, pose, config.predict
                 )
+            unknown = pred.mode == int(PredictionMode.UNKNOWN)
+            # Unknown motion wholly on the site's map is the fixed structure: it is where it
+            # stands, so its hull is a zone read along the path (SR-AVL-8).
+            mapped = mapped_rows(unknown, pred, fused.tracks, on_map)
+            zones = mapped_zones(zones, mapped, pred, fused.tracks, clusters, pose, config.predict)
             loose = clusters.point_labels < 0
             dist = self.clearance.free_distances(
                 inp.path, zones, *to_parent(pose, points.x_m[loose], points.y_m[loose])
             )
-            unknown = pred.mode == int(PredictionMode.UNKNOWN)
             here = bodies_now(pred, fused.tracks, unknown, config.predict.disc_sides)
             if self.levers.outline_bodies:
                 # An object of unknown motion seen this cycle is its cluster's hull (SR-AVL-6).
@@ -301,6 +340,7 @@ class Runtime:
                 )
             free = dist.zone_free_m.copy()
             free[unknown] = self.clearance.distances_now(inp.path, here)
+            free[mapped] = dist.zone_free_m[mapped]
             ped_free = self.clearance.distances_now(inp.path, ped_zones)
             path_part = {
                 "lookahead_m": dist.lookahead_m,
@@ -309,6 +349,7 @@ class Runtime:
                 "loose_points_on_path": dist.n_points_on_path,
                 "nearest_loose_point_m": dist.point_free_m,
                 "nearest_unknown_m": float(free[unknown].min(initial=dist.lookahead_m)),
+                "unknown_on_map": int(np.count_nonzero(mapped)),
                 "nearest_pedestrian_m": float(ped_free.min(initial=dist.lookahead_m)),
             }
             all_env = stack_polygons(env.polygons, ped_env)
@@ -340,61 +381,4 @@ class Runtime:
         inputs = governor_rows(
             inp.now_s, env, fused, free, ped_free, dist, self.params, config.runtime.loose_points
         )
-        return _SafetySide(inputs, env, dist, excess, path_part, planner_part, costmap_part, grid)
-
-
-@dataclass(frozen=True)
-class _SafetySide:
-    """What the safety stages of one cycle produced, for the decision and the record."""
-
-    inputs: GovernorInputs
-    envelopes: Envelopes
-    distances: PathDistances
-    excess_obstacles: int
-    path: dict[str, Any]
-    planner: dict[str, Any] | None
-    costmap: dict[str, Any] | None
-    grid: Costmap | None
-
-
-def _alert_part(alert: object, caution: MonitorVerdict) -> dict[str, Any]:
-    """The audit record's summary of an acoustic alert and whether it capped the speed (an
-    input that is not an alert is named, never read: its verdict is already a STOP)."""
-    if not isinstance(alert, AcousticAlert):
-        return {"invalid": type(alert).__name__, "caution": True}
-    return {
-        "kind": alert.kind.value,
-        "bearing_rad": alert.bearing_rad,
-        "confidence": alert.confidence,
-        "stamp_s": alert.stamp_s,
-        "caution": caution.action is not Action.PROCEED,
-    }
-
-
-def _fold_parts(
-    parts: dict[str, Any],
-    over_cap: list[tuple[str, int]],
-    partial: Partial,
-    side: _SafetySide | None,
-) -> None:
-    """The audit record's summary parts and the over-cap counts, from what the cycle reached."""
-    if partial.points is not None:
-        parts["drops"] = partial.points.drops
-    if partial.clusters is not None:
-        parts["clusters"] = partial.clusters.counts
-        over_cap.append(("cluster.max_clusters", partial.clusters.counts.n_over_cap))
-    if partial.counts is not None:
-        parts["tracker"] = partial.counts
-        over_cap.append(("track.max_detections", partial.counts.n_detections_dropped))
-        over_cap.append(("track.max_tracks", partial.counts.n_births_refused))
-    if partial.fused is not None:
-        parts["fusion"] = partial.fused.counts
-        over_cap.append(("fusion.max_thermal", partial.fused.counts.n_thermal_over_cap))
-        over_cap.append(("fusion.max_radar", partial.fused.counts.n_radar_over_cap))
-    if side is not None:
-        parts["path"] = side.path
-        over_cap.append(("geometry.max_obstacles", side.excess_obstacles))
-        if side.planner is not None:
-            parts["planner"] = side.planner
-        if side.costmap is not None:
-            parts["costmap"] = side.costmap
+        return SafetySide(inputs, env, dist, excess, path_part, planner_part, costmap_part, grid)

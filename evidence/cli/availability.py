@@ -22,7 +22,7 @@ from pipeline.config import SafecaseConfig
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.simulation import Simulation
 from safety.availability import Comparison, Shadow, run_baseline, run_oracle
-from safety.run import RunSummary
+from safety.run import RunSummary, site_map
 from safety.runtime import CycleInput, CycleOutput, Runtime
 
 __all__ = ["ROLES", "compared", "report_comparison", "scan_progress"]
@@ -40,7 +40,7 @@ def compared(
     oracle's and the baseline's runs of the same scenario and seed."""
     model = Classifier.from_config(cfg.classify)
     shadow = Shadow.for_simulation(cfg, sim, model)
-    ours = Runtime(cfg, classifier=model)
+    ours = Runtime(cfg, classifier=model, static_map=site_map(cfg, sim))
     summary = run_ours(ours, shadow.observer(ours))
     others: dict[str, RunSummary] = {}
     for role in ("oracle", "baseline"):
@@ -104,6 +104,11 @@ def report_comparison(comparison: Comparison) -> None:
         f"{c.nuisance_cycles} cycles, {c.nuisance_share:.1%} of {ours.duration_s:.1f} s"
         + (f", {len(episodes)} episodes, longest {max(episodes):.1f} s" if episodes else "")
         + f" (set by: {causes})",
+    )
+    lost = c.speed_given_up_m()
+    table.add_row(
+        "speed given up vs oracle",
+        ", ".join(f"{k} {v:.2f} m" for k, v in list(lost.items())[:4]) or "none",
     )
     out.print(table)
     side = Table(title="ours / oracle / baseline (same seed)")

@@ -1,4 +1,5 @@
-"""``safecase sim``: list the scenarios, picture one, write a labelled dataset (SR-SIM-*)."""
+"""``safecase sim``: list the scenarios, picture one, write a labelled dataset (SR-SIM-*) or
+a scenario's map (SR-AVL-8)."""
 
 from __future__ import annotations
 
@@ -138,3 +139,38 @@ def dataset(
     meta = write_dataset(out, cfg, names, range(first_seed, first_seed + seeds), duration)
     frames = sum(r["frames"] for r in meta["runs"])
     _out.print(f"wrote {out}: {len(meta['runs'])} runs, {frames} frames", highlight=False)
+
+
+@app.command("map")
+def write_map(
+    name: Annotated[str, typer.Argument(help="Scenario name (see `safecase sim list`).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Nav2 map YAML file to write.")],
+    seed: Annotated[int | None, typer.Option(help="Seed (default: sim.seed).")] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Write the scenario's fixed structure as a Nav2 map_server map (YAML and PGM beside it):
+    the map the runtime is given in simulation (map.resolution_m, map.tolerance_m; SR-AVL-8),
+    and the format `map.file` reads on a robot.
+
+    Example: safecase sim map crossing_pedestrian -o out/maps/crossing.yaml
+
+    Exit codes: 0 written; 2 unknown scenario, bad option or configuration.
+    """
+    from pipeline.sources.sim.scenarios import make_simulation
+    from pipeline.static_map import StaticMap
+
+    _check_names([name])
+    cfg = _config(config)
+    sim = make_simulation(cfg, name, seed)
+    section = cfg.map
+    smap = StaticMap.from_parts(
+        list(sim.world.structure.outline.parts()), section.resolution_m, section.tolerance_m
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    written = smap.write_nav2(out)
+    rows, cols = smap.occupied.shape
+    _out.print(
+        f"wrote {written} and {written.with_suffix('.pgm').name}: {cols} x {rows} cells of "
+        f"{smap.resolution_m} m, {int(smap.occupied.sum())} occupied",
+        highlight=False,
+    )

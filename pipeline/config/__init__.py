@@ -44,6 +44,7 @@ from pipeline.config.sections_safety import (
 )
 from pipeline.config.sections_sensors import (
     AcousticSection,
+    MapSection,
     MarkingsSection,
     RadarSection,
     ThermalSection,
@@ -62,6 +63,7 @@ __all__ = [
     "FusionSection",
     "GeometrySection",
     "GovernorSection",
+    "MapSection",
     "MarkingsSection",
     "MonitorSection",
     "PredictSection",
@@ -107,6 +109,7 @@ class SafecaseConfig(Section):
     radar: RadarSection = RadarSection()
     acoustic: AcousticSection = AcousticSection()
     markings: MarkingsSection = MarkingsSection()
+    map: MapSection = MapSection()
 
     @model_validator(mode="after")
     def _monitor_enforces_the_proved_latency(self) -> SafecaseConfig:
@@ -117,6 +120,20 @@ class SafecaseConfig(Section):
                 f"monitors.scan_max_age_s ({self.monitors.scan_max_age_s}) must not exceed "
                 f"stopping.perception_latency_s ({self.stopping.perception_latency_s}): the "
                 "monitor would pass data older than the stopping proof assumes"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _map_cannot_cover_a_person(self) -> SafecaseConfig:
+        # SR-AVL-8: a covered point lies within tolerance + sqrt(2) resolution of the structure;
+        # that reach must stay below a person's radius, or a person standing clear of the
+        # racking could be taken for it.
+        m = self.map
+        reach = m.tolerance_m + math.sqrt(2.0) * m.resolution_m
+        if reach >= self.runtime.person_radius_m:
+            raise ValueError(
+                f"map.tolerance_m + sqrt(2) map.resolution_m ({reach:.4g}) must be below "
+                f"runtime.person_radius_m ({self.runtime.person_radius_m})"
             )
         return self
 

@@ -258,3 +258,23 @@ class MarkingsSection(Section):
                 f"markings.arc_max_radius_m ({self.arc_max_radius_m})"
             )
         return self
+
+
+class MapSection(Section):
+    """The site's static map (:mod:`pipeline.static_map`, SR-AVL-8).
+
+    ``file``: a Nav2 ``map_server`` YAML file (empty: no map). In a simulated run with
+    ``simulated_world`` (the default) and no file, the simulated world's fixed structure is the
+    map, rasterised at ``resolution_m``. A cluster whose every return lies within
+    ``tolerance_m`` (cell centre to occupied cell centre) of the map's structure is that
+    structure: the governor reads it where it stands, along the path, instead of as an object of
+    unknown motion. The map frame is taken to be the tracking frame (assumption A-11: the
+    localisation keeps them within ``tolerance_m``). ``tolerance_m + 1.5 resolution_m`` must
+    stay below ``runtime.person_radius_m``, so a person's returns cannot all be covered while
+    they stand clear of the structure.
+    """
+
+    file: str = ""
+    simulated_world: bool = True
+    resolution_m: float = Field(0.05, gt=0.005, le=0.5)
+    tolerance_m: float = Field(0.1, ge=0.0, le=0.5)

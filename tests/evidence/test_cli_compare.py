@@ -28,7 +28,14 @@ def test_run_compare_prints_progress_against_the_oracle_and_nuisance_stops(
         cwd=tmp_path,
     )
     assert done.returncode == 0, done.stdout + done.stderr
-    for text in ("progress vs oracle", "nuisance STOPs", "ours", "oracle", "baseline"):
+    for text in (
+        "progress vs oracle",
+        "nuisance STOPs",
+        "speed given up vs oracle",
+        "ours",
+        "oracle",
+        "baseline",
+    ):
         assert text in done.stdout, text
     assert audit.with_suffix(".png").stat().st_size > 10_000
     assert audit.stat().st_size > 0

@@ -10,9 +10,10 @@ import pytest
 
 from pipeline.classify.model import Classifier
 from pipeline.config import default_config, overridden
+from pipeline.static_map import StaticMap
 from pipeline.types import Action, Scan, ThermalDetections
 from properties.cli_runner import run_safecase
-from safety.runtime import CycleInput, Runtime
+from safety.runtime import CycleInput, Levers, Runtime
 
 CONFIG = default_config()
 
@@ -141,12 +142,11 @@ def test_a_cycle_that_cannot_be_recorded_is_not_acted_on(classifier: Classifier)
     assert out.command.reasons[0].startswith("audit: the cycle could not be recorded (OSError")
 
 
-@pytest.mark.requirement("SR-RUN-2", kind="example", code=["safety/obstacles.py"])
-def test_an_object_faster_than_the_domain_allows_stops_the_robot(classifier: Classifier) -> None:
-    rt = Runtime(CONFIG, classifier=classifier)
+def _crossing_fast(rt: Runtime) -> list[str]:
+    """The domain monitor's reasons while a 0.3 m object 4 m ahead crosses at 6 m/s."""
     angles = np.linspace(-math.pi, math.pi, 2000, endpoint=False)
     reasons: list[str] = []
-    for k in range(8):  # a 0.3 m object 4 m ahead crossing at 6 m/s (0.6 m per scan)
+    for k in range(8):  # 0.6 m per scan
         cx, cy = 4.0, -2.0 + 0.6 * k
         ranges = np.full(angles.size, np.inf)
         bearing = math.atan2(cy, cx)
@@ -155,6 +155,26 @@ def test_an_object_faster_than_the_domain_allows_stops_the_robot(classifier: Cla
         scan = Scan(10.0 + 0.1 * k, angles, ranges, seq=k)
         out = rt.step(CycleInput.standing(scan, scan.stamp_s + 0.1, CONFIG, charge_s=0.01))
         reasons += out.command.reasons
-    fast = [r for r in reasons if r.startswith("domain:object_speed: track")]
-    assert fast, reasons
+    return [r for r in reasons if r.startswith("domain:object_speed: track")]
+
+
+@pytest.mark.requirement("SR-AVL-8", kind="property", code=["safety/obstacles.py"])
+def test_returns_wholly_on_the_map_are_not_held_to_the_speed_domain(
+    classifier: Classifier,
+) -> None:
+    """The same returns drawn on the site's map (a wall along their path): the structure does
+    not move, so the domain monitor leaves them; off the map, or with the lever off, it stops."""
+    wall = np.array([[3.9, -3.0], [4.2, -3.0], [4.2, 3.0], [3.9, 3.0]])
+    on = StaticMap.from_parts([wall], 0.05, 0.1)
+    off = StaticMap.from_parts([wall + np.array([1.0, 0.0])], 0.05, 0.1)
+    assert not _crossing_fast(Runtime(CONFIG, classifier=classifier, static_map=on))
+    assert _crossing_fast(Runtime(CONFIG, classifier=classifier, static_map=off))
+    lever_off = Levers(mapped_structure=False)
+    assert _crossing_fast(Runtime(CONFIG, classifier=classifier, static_map=on, levers=lever_off))
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=["safety/obstacles.py"])
+def test_an_object_faster_than_the_domain_allows_stops_the_robot(classifier: Classifier) -> None:
+    fast = _crossing_fast(Runtime(CONFIG, classifier=classifier))
+    assert fast
     assert "above predict.max_object_speed_mps = 3.5" in fast[0]
