@@ -43,6 +43,8 @@ from safety.runtime import Levers
 
 CODE = ["safety/availability.py", "pipeline/oracle.py", "safety/run.py"]
 BASELINE = ["safety/baseline.py", "examples/nav2/baseline.yaml"]
+# A share of 0.5 % is judged on at least this many cycles (one cycle is then 0.1 %).
+MIN_CYCLES_FOR_SHARE = 1000
 NAMED = (
     "reversing_forklift_aisle",
     "crossing_pedestrian",
@@ -59,7 +61,8 @@ def _runs() -> list[tuple[str, int, float]]:
             *((n, seed, 15.0) for n in NAMED for seed in range(seeds)),
             *(("random_encounter", seed, 15.0) for seed in range(100, 100 + randoms)),
         ]
-    return [(n, 0, 10.0) for n in ("reversing_forklift_aisle", "pallet_jack_slow")]
+    # pallet_jack_slow for 15 s: the run the certify campaign holds below 90 % of the oracle.
+    return [("reversing_forklift_aisle", 0, 10.0), ("pallet_jack_slow", 0, 15.0)]
 
 
 @pytest.fixture(scope="module")
@@ -233,6 +236,12 @@ def test_the_domain_speed_monitor_rarely_stops_the_robot_for_nothing(campaign: C
     cluster that split and merged while it was tentative)."""
     causes = dict(campaign.nuisance_causes())
     cycles = sum(c.ours.cycles for c in campaign.comparisons)
+    if cycles < MIN_CYCLES_FOR_SHARE:
+        pytest.skip(
+            f"{cycles} cycles ({causes.get(OBJECT_SPEED_WATCH, 0)} set by the monitor): too "
+            f"few to judge a 0.5 % share (one cycle is {1 / cycles:.2%}); the certify "
+            "campaign judges it"
+        )
     share = causes.get(OBJECT_SPEED_WATCH, 0) / cycles
     assert share <= 0.005, (f"{share:.2%} of {cycles} cycles", causes)
 

@@ -96,7 +96,10 @@ def test_a_nav2_map_file_round_trips_and_bad_files_are_refused(tmp_path: Path) -
     text = yaml_path.read_text()
     for bad, match in (
         (text.replace("resolution:", "res:"), "needs the keys"),
-        (text.replace(", 0.0]", ", 0.5]"), "yaw 0.5"),
+        (
+            text.replace(", 0.0]", ", 0.5]"),
+            r"yaw 0.5 is not supported; allowed: 0 \(as most of Nav2 assumes\)",
+        ),
         (text.replace("trinary", "raw"), "mode 'raw'"),
         (text.replace("site.pgm", "gone.pgm"), "gone.pgm"),
     ):

@@ -4,14 +4,16 @@ out of range."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from pipeline.config import default_config, overridden
 from pipeline.errors import ConfigError
-from pipeline.static_map import StaticMap, clusters_on_map
+from pipeline.static_map import StaticMap, checked_map, clusters_on_map
 
 
 def test_the_first_row_and_column_are_on_the_grid() -> None:
@@ -68,26 +70,72 @@ def test_no_parts_is_refused_naming_the_source() -> None:
 def _map_file(tmp_path: Path, pixels: list[int], extra: str) -> Path:
     Image.fromarray(np.array([pixels], dtype=np.uint8)).save(tmp_path / "m.pgm")
     yaml_path = tmp_path / "m.yaml"
-    yaml_path.write_text(f"image: m.pgm\nresolution: 1.0\norigin: [0.0, 0.0, 0.0]\n{extra}")
+    yaml_path.write_text(f"image: m.pgm\nresolution: 1.0\norigin: [1.0, 2.0, 0.0]\n{extra}")
     return yaml_path
 
 
 def test_nav2_pixels_are_read_as_map_server_reads_them(tmp_path: Path) -> None:
     """Trinary: occupied when (255 - value) / 255 exceeds occupied_thresh (0.65 by default);
     with negate, value / 255; a value exactly at the threshold is not occupied."""
-    pixels = [0, 89, 90, 100, 254, 255]
+    pixels = [0, 89, 90, 100, 166, 254, 255]
     plain = StaticMap.from_nav2(_map_file(tmp_path, pixels, ""), 0.0)
-    assert plain.occupied[0].tolist() == [True, True, False, False, False, False]
+    assert plain.occupied[0].tolist() == [True, True, False, False, False, False, False]
     negated = StaticMap.from_nav2(_map_file(tmp_path, pixels, "negate: 1\nmode: scale\n"), 0.0)
-    assert negated.occupied[0].tolist() == [False, False, False, False, True, True]
+    assert negated.occupied[0].tolist() == [False, False, False, False, True, True, True]
     at = 155.0 / 255.0
     edge = StaticMap.from_nav2(_map_file(tmp_path, pixels, f"occupied_thresh: {at!r}\n"), 0.0)
-    assert edge.occupied[0].tolist() == [True, True, True, False, False, False]
+    assert edge.occupied[0].tolist() == [True, True, True, False, False, False, False]
+    assert (edge.origin_x_m, edge.origin_y_m) == (1.0, 2.0)
+
+
+def test_a_colour_map_image_is_read_by_its_luminance(tmp_path: Path) -> None:
+    rgb = np.zeros((1, 3, 3), dtype=np.uint8)
+    rgb[0, 1] = 254
+    rgb[0, 2] = (254, 0, 0)  # luminance 76: occupied
+    Image.fromarray(rgb).save(tmp_path / "c.png")
+    (tmp_path / "c.yaml").write_text("image: c.png\nresolution: 0.1\norigin: [0.0, 0.0, 0.0]\n")
+    assert StaticMap.from_nav2(tmp_path / "c.yaml", 0.0).occupied.tolist() == [[True, False, True]]
+
+
+def test_a_written_map_carries_every_key_map_server_requires(tmp_path: Path) -> None:
+    from ruamel.yaml import YAML
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    path = StaticMap.from_parts([square], 0.05, 0.1).write_nav2(tmp_path / "w.yaml")
+    meta = YAML(typ="safe").load(path.read_text())
+    assert sorted(meta) == sorted(
+        ["image", "mode", "resolution", "origin", "negate", "occupied_thresh", "free_thresh"]
+    )
+    assert (meta["occupied_thresh"], meta["free_thresh"], meta["negate"]) == (0.65, 0.196, 0)
+
+
+def test_the_reach_and_the_person_radius() -> None:
+    """The reach is tolerance + sqrt(2) x resolution; a map reaching exactly a person's radius
+    is refused (the bound is strict)."""
+    smap = StaticMap.from_grid(np.ones((2, 2), dtype=bool), 0.05, (0.0, 0.0), 0.05, "r")
+    assert smap.reach_m() == 0.05 + math.sqrt(2.0) * 0.05
+    config = default_config()
+    assert checked_map(smap, config) is smap
+    exact = overridden(
+        config,
+        {
+            "map": {"tolerance_m": 0.0, "resolution_m": 0.01},
+            "runtime": {"person_radius_m": smap.reach_m()},
+        },
+    )
+    with pytest.raises(ConfigError, match=r"r: tolerance 0\.05 m"):
+        checked_map(smap, exact)
+
+
+def test_a_grid_of_numbers_is_read_as_occupied_where_nonzero() -> None:
+    smap = StaticMap.from_grid(np.array([[0, 2]]), 1.0, (0.0, 0.0), 0.0, "ints")
+    assert smap.occupied.dtype == np.bool_
+    assert smap.occupied.tolist() == [[False, True]]
 
 
 def test_a_bad_origin_is_refused_naming_it(tmp_path: Path) -> None:
     path = _map_file(tmp_path, [0], "")
-    path.write_text(path.read_text().replace("origin: [0.0, 0.0, 0.0]", "origin: 3"))
+    path.write_text(path.read_text().replace("origin: [1.0, 2.0, 0.0]", "origin: 3"))
     with pytest.raises(ConfigError, match=r"m.yaml: origin must be \[x, y, yaw\], got 3"):
         StaticMap.from_nav2(path, 0.0)
     path.write_text(path.read_text().replace("origin: 3", "origin: [1.0, 2.0]"))
