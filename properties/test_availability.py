@@ -19,6 +19,7 @@ import pytest
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.stats import binomtest
 
 from evidence.profiles import active_profile, by_profile, certifying, examples
 from evidence.record import Recorder, current
@@ -233,16 +234,23 @@ def test_the_domain_speed_monitor_rarely_stops_the_robot_for_nothing(campaign: C
     """With re-identification off by default, the object-speed domain monitor sets at most
     0.5 % of our cycles as nuisance STOPs (a STOP where the oracle sees nothing that fast): the
     speed jumps left come from a new track confirmed on detections of different sizes (a
-    cluster that split and merged while it was tentative)."""
+    cluster that split and merged while it was tentative). On fewer than
+    ``MIN_CYCLES_FOR_SHARE`` cycles (the ci campaign) the count must only not refute that share
+    (one-sided binomial test at 5 %)."""
     causes = dict(campaign.nuisance_causes())
     cycles = sum(c.ours.cycles for c in campaign.comparisons)
+    count = causes.get(OBJECT_SPEED_WATCH, 0)
     if cycles < MIN_CYCLES_FOR_SHARE:
-        pytest.skip(
-            f"{cycles} cycles ({causes.get(OBJECT_SPEED_WATCH, 0)} set by the monitor): too "
-            f"few to judge a 0.5 % share (one cycle is {1 / cycles:.2%}); the certify "
-            "campaign judges it"
+        # Too few cycles for a share of 0.5 % (one cycle is more): the count must only not
+        # refute it, at the 5 % level (binomial, one-sided).
+        p_value = float(binomtest(count, cycles, 0.005, alternative="greater").pvalue)
+        current().note(
+            f"{count} of {cycles} cycles set by the monitor: too few cycles to judge a 0.5 % "
+            f"share, and they do not refute it (one-sided binomial p = {p_value:.2f})"
         )
-    share = causes.get(OBJECT_SPEED_WATCH, 0) / cycles
+        assert p_value >= 0.05, (count, cycles, causes)
+        return
+    share = count / cycles
     assert share <= 0.005, (f"{share:.2%} of {cycles} cycles", causes)
 
 

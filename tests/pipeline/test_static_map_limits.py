@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from PIL import Image
 
 from pipeline.config import default_config, overridden
@@ -158,3 +159,42 @@ def test_labels_out_of_range_are_not_counted() -> None:
     x, y = np.array([0.5, 0.5, 9.0]), np.array([0.5, 1.5, 9.0])
     assert clusters_on_map(smap, np.array([0, 1, 2]), x, y, 2).tolist() == [True, True]
     assert clusters_on_map(smap, np.array([0.0, 1.0, 2.0]), x, y, 2).tolist() == [True, True]
+
+
+def _every_cell(parts: list[np.ndarray], smap: StaticMap) -> np.ndarray:
+    """The reference raster: every cell's centre against the union of the parts."""
+    union = shapely.unary_union([shapely.Polygon(p) for p in parts])
+    rows, cols = smap.occupied.shape
+    h = smap.resolution_m
+    gx, gy = np.meshgrid(
+        smap.origin_x_m + (np.arange(cols) + 0.5) * h, smap.origin_y_m + (np.arange(rows) + 0.5) * h
+    )
+    near = shapely.dwithin(union, shapely.points(gx.ravel(), gy.ravel()), math.sqrt(0.5) * h)
+    return np.asarray(near).reshape(rows, cols)
+
+
+@pytest.mark.parametrize("resolution", [0.05, 0.3, 2.0])
+def test_the_raster_part_by_part_equals_every_cell_against_the_union(resolution: float) -> None:
+    rng = np.random.default_rng(7)
+    parts = []
+    for _ in range(12):
+        cx, cy, w, d = (
+            rng.uniform(-6, 6),
+            rng.uniform(-6, 6),
+            rng.uniform(0.1, 4),
+            rng.uniform(0.05, 1),
+        )
+        parts.append(np.array([[cx, cy], [cx + w, cy], [cx + w, cy + d], [cx, cy + d]]))
+    smap = StaticMap.from_parts(parts, resolution, 0.1)
+    reference = _every_cell(parts, smap)
+    # Part by part may add cells at exactly the reach (a corner on a cell's corner), never lose one.
+    assert not (reference & ~smap.occupied).any()
+    assert (smap.occupied & ~reference).sum() <= 0.001 * smap.occupied.size
+
+
+def test_a_part_through_a_cells_corner_occupies_that_cell() -> None:
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    smap = StaticMap.from_parts([square], 0.5, 0.0)
+    assert (smap.origin_x_m, smap.origin_y_m) == (-1.0, -1.0)
+    assert smap.occupied[1, 1]  # the cell [-0.5, 0) x [-0.5, 0), touching the corner (0, 0)
+    assert not smap.occupied[0, 0]
