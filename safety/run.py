@@ -294,7 +294,7 @@ def site_map(config: SafecaseConfig, sim: Simulation) -> StaticMap | None:
     return _WORLD_MAPS[key]
 
 
-# Rasterising a world takes about 40 ms; the runs of a named scenario share its layout.
+# Rasterising a world takes about 0.3 s; the runs of a named scenario share its layout.
 _WORLD_MAPS: dict[tuple[str, float, float], StaticMap] = {}
 _WORLD_MAPS_KEPT = 8
 
