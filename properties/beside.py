@@ -4,12 +4,12 @@ The certify suite runs its tests one after another on one core; a soak of an hou
 (SR-RUN-5) needs a core for as long. :func:`start` hands such a call to a spawned worker process
 as soon as collection has finished (see ``properties/conftest.py``); the test that needs the
 figures calls :func:`result` with the same call, which waits for the worker's answer, or runs
-the call in-process when nothing was started for it (any profile but certify, or the test run
-alone). Up to :data:`WORKERS` calls run at once, each in its own process: the device soak is
-paced by its scanner's rate and leaves most of a core idle, so the two soaks side by side end
-in the time of the longer one instead of the sum. A spawned process shares no state (no forked
-solver or thread pools) with the suite. The figures are the same whichever process computes
-them: what is measured is the call's own process (its RSS and its main thread's CPU time).
+the call in-process when nothing was started for it. Up to :data:`WORKERS` calls run at once,
+each in its own process: the device soak is paced by its scanner's rate and leaves most of a
+core idle, so the two soaks side by side end in the time of the longer one instead of the sum.
+A spawned process shares no state (no forked solver or thread pools, no heap the earlier tests
+left) with the suite: what a soak measures is its own process (its RSS and its main thread's
+CPU time).
 
 The module-level functions use the session's one :class:`Beside`; anything else (its own
 tests) makes its own, so stopping it never ends the session's soaks.

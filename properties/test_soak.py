@@ -4,13 +4,16 @@
 Two soaks (:mod:`properties.soak`): the simulator in closed loop through the runtime (a busy
 patrol scene, 10 Hz) and a device run through the RPLIDAR emulator on a pty and the serial
 driver. Under ``certify-full`` the simulator runs one simulated hour (36,000 cycles) and the
-device 30,000 scans, under ``certify`` a quarter of an hour (9,000 cycles) and 10,000 scans, each
-in a worker process beside the rest of the suite (:mod:`properties.beside`, started by
-``properties/conftest.py``); under any other profile 1,000 cycles and 300 scans, in-process,
-which still check the bounds.
+device 30,000 scans, under ``certify`` a quarter of an hour (9,000 cycles) and 10,000 scans,
+under any other profile 1,200 cycles and 300 scans, which still check the bounds; each in a
+worker process of its own beside the rest of the suite (:mod:`properties.beside`, started by
+``properties/conftest.py``), so that the memory measured is the soak's and not the test
+session's.
 
-The bounds, after a warm-up of ``max(100, 10 %)`` cycles (caches, the classifier, the
-allocator's arenas): the RSS grows by less than ``GROWTH_MB`` from the first tenth of the
+The bounds, after a warm-up of ``max(450, 10 %)`` cycles for the simulator (caches, the
+classifier, the allocator's arenas, the swept-path check's scratch buffer sized at the patrol's
+first turn) and ``max(100, 10 %)`` scans for the device (:attr:`properties.soak.Soak.warmup`):
+the RSS grows by less than ``GROWTH_MB`` from the first tenth of the
 samples to the last (medians) and along the least-squares fit over the run; under
 ``certify-full`` the fitted slope is also under ``GROWTH_MB`` per hour of cycles at 10 Hz. The
 median cycle CPU time (the main thread's: simulator or driver, and runtime) in the last tenth of
@@ -50,16 +53,12 @@ COST_RATIO = {"certify": 1.25, "certify-full": 1.25}  # any other profile: SHORT
 SHORT_COST_RATIO = 1.5  # tenths of 30-100 cycles: one busy second on a shared machine shows
 
 
-def _warmup(soak: Soak) -> int:
-    return max(100, soak.cycles // 10)
-
-
 def _cost_ratio() -> float:
     return COST_RATIO.get(active_profile(), SHORT_COST_RATIO)
 
 
 def _times(soak: Soak, which: str) -> list[list[str]]:
-    w = _warmup(soak)
+    w = soak.warmup
     rows = []
     for what, part, start in (
         ("first 10 %", "first", 0),
@@ -73,7 +72,7 @@ def _times(soak: Soak, which: str) -> list[list[str]]:
 
 def _record(evidence: Recorder, soak: Soak) -> None:
     """The soak's figures as a table, its cycle times, its commands and a plot."""
-    w = _warmup(soak)
+    w = soak.warmup
     cycle, rss = soak.after(w)
     evidence.table(
         f"soak: {soak.label}",
@@ -92,8 +91,8 @@ def _record(evidence: Recorder, soak: Soak) -> None:
         ],
         caption=f"{active_profile()} profile. Bounds: RSS growth < {GROWTH_MB:g} MB after "
         f"warm-up; last-tenth p50 CPU time <= {_cost_ratio():g} x that of the tenth after warm-up. "
-        "RSS is VmRSS of this process (the test session's own memory included) after "
-        f"malloc_trim, at {cycle.size} points after warm-up; CPU time is the main thread's.",
+        "RSS is VmRSS of the soak's own process (a worker beside the suite) after malloc_trim, "
+        f"at {cycle.size} points after warm-up; CPU time is the main thread's.",
     )
     for which in ("cpu", "wall"):
         for part in ("first", "last"):
@@ -126,7 +125,7 @@ def _record(evidence: Recorder, soak: Soak) -> None:
 
 
 def _check(soak: Soak) -> None:
-    w = _warmup(soak)
+    w = soak.warmup
     cycle, _ = soak.after(w)
     growth = soak.growth_mb(w)
     slope = soak.slope_mb_per_h(w)

@@ -1,4 +1,5 @@
-"""Under certify the tests that wait for a beside worker run last (properties/conftest.py)."""
+"""The tests that wait for a beside worker run last (properties/conftest.py): the soaks under
+every profile, the campaigns run ahead under certify."""
 
 from __future__ import annotations
 
@@ -57,8 +58,8 @@ def test_under_certify_campaigns_run_ahead_then_soaks_last(profile: Any) -> None
     assert [i.name for i in items] == ["first", "second", "campaign", "soak"]
 
 
-def test_other_profiles_keep_the_collection_order(profile: Any) -> None:
+def test_other_profiles_move_only_the_soaks_last(profile: Any) -> None:
     profile("ci")
     items = _items()
     conftest.pytest_collection_modifyitems(None, items)  # type: ignore[arg-type]
-    assert [i.name for i in items] == ["soak", "campaign", "first", "second"]
+    assert [i.name for i in items] == ["campaign", "first", "second", "soak"]

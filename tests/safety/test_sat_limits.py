@@ -18,7 +18,13 @@ import shapely
 
 from pipeline.types import ConvexPolygons, FloatArray
 from safety.geometry.polygons import GeometryError, convex_polygons
-from safety.geometry.sat import SatChecker, SatStats, _column_max
+from safety.geometry.sat import (
+    CHUNK_PAIRS,
+    FULL_CHUNK_PAIRS,
+    SatChecker,
+    SatStats,
+    _column_max,
+)
 
 SAT = ["safety/geometry/sat.py"]
 TOL_M = 2.0**-10
@@ -112,17 +118,49 @@ def test_the_all_pairs_table_in_both_orientations_and_its_stages() -> None:
 
 @pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
 @pytest.mark.parametrize("transpose", [False, True])
-def test_many_pairs_take_the_same_steps(transpose: bool) -> None:
-    """40 copies of each pair (enough for the kernel's wide-table maximum): the same verdicts
-    and the same deciding steps as one copy."""
-    rings_a = [c[0] for c in CASES for _ in range(40)]
-    rings_b = [c[1] for c in CASES for _ in range(40)]
+@pytest.mark.parametrize(
+    ("copies", "interleaved"), [(40, False), (CHUNK_PAIRS // 2 + 1, True)], ids=["40", "chunked"]
+)
+def test_many_pairs_take_the_same_steps(transpose: bool, copies: int, interleaved: bool) -> None:
+    """Copies of each pair: the same verdicts and the same deciding steps as one copy. 40 are
+    enough for the kernel's wide-table maximum; CHUNK_PAIRS / 2 + 1, the cases taken in turn,
+    put 4 (CHUNK_PAIRS / 2 + 1) pairs through the kernel in three chunks and twice as many
+    through the edge-normal tests as FULL_CHUNK_PAIRS, each chunk holding every kind."""
+    order = (
+        [c for _ in range(copies) for c in CASES]
+        if interleaved
+        else [c for c in CASES for _ in range(copies)]
+    )
+    rings_a, rings_b = [c[0] for c in order], [c[1] for c in order]
     if transpose:
         rings_a, rings_b = rings_b, rings_a
     checker = SatChecker(TOL_M)
     got = checker.overlap_pairs(_polygons(rings_a), _polygons(rings_b))
-    assert got.tolist() == [c[2] for c in CASES for _ in range(40)]
-    assert checker.stats.as_dict() == _stats(box=40, centre_line=40, certificate=40, full_sat=80)
+    assert got.tolist() == [c[2] for c in order]
+    assert checker.stats.as_dict() == _stats(
+        box=copies, centre_line=copies, certificate=copies, full_sat=2 * copies
+    )
+
+
+@pytest.mark.requirement("SR-SAT-6", kind="example", code=SAT)
+def test_a_table_of_many_near_pairs_is_decided_pair_by_pair_across_chunks() -> None:
+    """A row of FULL_CLEAR-like pairs 10 m apart, each a triangle and a square 0.01 m beyond
+    its hypotenuse, the squares in reverse order and each with a slack of 0 or 0.02 m (seeded):
+    the all-pairs table collides exactly where a pair's own slack covers its gap, across more
+    pairs than CHUNK_PAIRS and FULL_CHUNK_PAIRS, every other pair separated by its boxes."""
+    n = CHUNK_PAIRS + FULL_CHUNK_PAIRS + 7
+    tri, square = _beyond_the_hypotenuse(0.01)
+    shift = [[10.0 * i, 0.0] for i in range(n)]
+    a = _polygons([(np.array(tri) + d).tolist() for d in shift])
+    slack = np.random.default_rng(3).choice([0.0, 0.02], size=n)
+    b = _polygons([(np.array(square) + d).tolist() for d in shift[::-1]], slack.tolist())
+    checker = SatChecker(TOL_M)
+    table = checker.overlap_all(a, b)
+    expected = np.zeros((n, n), dtype=bool)
+    expected[np.arange(n)[::-1], np.arange(n)] = slack > 0.0  # A[n - 1 - j] with B[j]
+    assert table.tolist() == expected.tolist()
+    assert 0 < int(slack.sum() / 0.02) < n
+    assert checker.stats.as_dict() == _stats(box=n * n - n, full_sat=n)
 
 
 def _beyond_the_diagonal(gap_m: float) -> tuple[list[list[float]], list[list[float]]]:
