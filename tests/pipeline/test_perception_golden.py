@@ -1,14 +1,24 @@
 """The perception chain's outputs are bit-identical to the recorded golden digests.
 
-``tests/data/golden/perception.json`` holds, per cycle, a SHA-256 digest (24 hex digits) of
-every stage's output (points, clusters, tracks, features, classes, fusion, predictions) and of
-the safety side's results (command, governor inputs, envelopes, path distances) for three
-closed-loop simulator runs with thermal detections, the labelled training rows of two runs,
-and the chain on 150 scans of a real bag in the laser's frame. A digest covers every field's
-dtype, shape and bytes, so any change in any bit of any output fails the test.
+``tests/data/golden/perception.<numerics>.json`` holds, per cycle, a SHA-256 digest (24 hex
+digits) of every stage's output (points, clusters, tracks, features, classes, fusion,
+predictions) and of the safety side's results (command, governor inputs, envelopes, path
+distances) for three closed-loop simulator runs with thermal detections, the labelled training
+rows of two runs, and the chain on 150 scans of a real bag in the laser's frame. A digest
+covers every field's dtype, shape and bytes, so any change in any bit of any output fails the
+test.
 
-Regenerate (only when a change of outputs is intended and explained in its commit):
-``SAFECASE_GOLDEN_WRITE=1 .venv/bin/python -m pytest tests/pipeline/test_perception_golden.py``.
+Bits depend on the machine's numerics as well as on the code: numpy picks its sin, cos, exp
+and reductions by CPU at run time, and x86-64 with AVX-512 and with AVX2 only round differently
+in the last bit (the points of a scan already differ). One set of digests is kept per
+*numerics path* (:func:`numerics_path`, e.g. ``x86-64-avx512``); the outputs must equal one of
+the recorded sets entirely, so a change of code fails on every machine, and a machine on a path
+none was recorded on fails too, naming its path.
+
+Regenerate (only when a change of outputs is intended and explained in its commit; on every
+numerics path at hand, and delete the sets of the paths that cannot be regenerated):
+``SAFECASE_GOLDEN_WRITE=1 .venv/bin/python -m pytest tests/pipeline/test_perception_golden.py``
+writes this machine's set.
 """
 
 from __future__ import annotations
@@ -16,8 +26,10 @@ from __future__ import annotations
 import dataclasses
 import enum
 import hashlib
+import importlib
 import json
 import os
+import platform
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -40,7 +52,7 @@ from safety.model.freshness import is_fresh
 from safety.runtime import CycleInput, CycleOutput, Runtime
 
 DATA = Path(__file__).resolve().parents[1] / "data"
-GOLDEN = DATA / "golden" / "perception.json"
+GOLDEN_DIR = DATA / "golden"
 BAG = DATA / "leg_tracker" / "positive_1_extracted.bag"
 RUNS = (
     ("reversing_forklift_aisle", 3, 8.0),
@@ -268,6 +280,17 @@ def _compute(fusion: Counter[str]) -> dict[str, Any]:
     }
 
 
+def numerics_path() -> str:
+    """The machine and the widest SIMD extension numpy dispatches to here (``x86-64-avx512``,
+    ``x86-64-avx2``, ``aarch64-asimd``, ...): the golden sets' names."""
+    features = importlib.import_module("numpy._core._multiarray_umath").__cpu_features__
+    machine = platform.machine().lower().replace("_", "-").replace("amd64", "x86-64")
+    for feature in ("AVX512_SKX", "AVX2", "SVE", "ASIMD", "VSX", "VX"):
+        if features.get(feature):
+            return f"{machine}-{feature.lower().split('_')[0]}"
+    return machine
+
+
 def _first_difference(want: Any, got: Any, where: str = "") -> str | None:
     if isinstance(want, dict) and isinstance(got, dict):
         for key in sorted(set(want) | set(got)):
@@ -293,12 +316,20 @@ def test_the_chain_reproduces_the_golden_digests_bit_for_bit() -> None:
     # The runs exercise every fusion path: matched, thermal-only, stale, radar updates.
     for key in ("n_thermal_matched", "n_thermal_only", "n_thermal_stale", "n_radar_matched"):
         assert fusion[key] > 0, (key, dict(fusion))
+    path = numerics_path()
     if os.environ.get("SAFECASE_GOLDEN_WRITE"):
-        GOLDEN.write_text(json.dumps(got, indent=0, sort_keys=True))
-        pytest.skip(f"wrote {GOLDEN}")
-    want = json.loads(GOLDEN.read_text())
-    difference = _first_difference(want, json.loads(json.dumps(got)))
-    assert difference is None, difference
+        out = GOLDEN_DIR / f"perception.{path}.json"
+        out.write_text(json.dumps(got, indent=0, sort_keys=True))
+        pytest.skip(f"wrote {out}")
+    sets = sorted(GOLDEN_DIR.glob("perception.*.json"))
+    assert sets, f"no golden digests in {GOLDEN_DIR}"
+    now = json.loads(json.dumps(got))
+    differences = {s.name: _first_difference(json.loads(s.read_text()), now) for s in sets}
+    assert None in differences.values(), (
+        f"this machine's numerics path is {path}; the outputs equal none of the recorded sets: "
+        + "; ".join(f"{name}: {diff}" for name, diff in differences.items())
+    )
+    want = now
     assert sum(len(v) for v in want["runtime"].values()) == 300
     every_stage = set(PERCEPTION_FIELDS)
     assert all(every_stage <= set(row) for rows in want["runtime"].values() for row in rows)
