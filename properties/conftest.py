@@ -3,10 +3,9 @@ workers beside the suite (:mod:`properties.beside`) under every profile, and und
 bodies of the campaigns decorated with :func:`properties.ahead.ahead` too; the tests that wait
 for them run last: the campaigns, then the soaks.
 
-A soak measures its own process's resident memory, so it never runs in the test session's: the
-heap the earlier tests left, fragmented and trimmed, refills page by page under any new work
-and shows as growth that is the suite's, not the runtime's (the 1,000-cycle soak measured 5.4 MB
-in the session after the whole suite against 1-2 MB in a process of its own)."""
+A soak measures its own process's resident memory, so it never runs in the test session's,
+whose heap, as the earlier tests left it (fragmented, trimmed), would add growth of its own to
+the runtime's."""
 
 from __future__ import annotations
 
