@@ -11,6 +11,7 @@ the centre line and along an edge normal that only the full test tries.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import numpy as np
 import pytest
@@ -395,17 +396,122 @@ def test_one_side_s_point_inside_the_other_is_a_certificate() -> None:
 @pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
 @pytest.mark.parametrize("tolerance_m", [0.0, 1e-9])
 def test_the_box_step_counts_each_polygons_slack(tolerance_m: float) -> None:
-    # Each square's exact region may reach 0.01 m beyond its vertices: 5 mm apart along x they
-    # may touch, and no step may call them clear (as none does along a diagonal).
+    # Each square's exact region may reach 0.01 m beyond its vertices: 15 mm apart along x or
+    # y (farther than either slack, within both) they may touch, and no step may call them
+    # clear (as none does 12 mm apart along both).
     a = _polygons([_square(0.0, 0.0)], [0.01])
-    for dx, dy in ((1.005, 0.0), (0.0, 1.005), (1.005, 1.005)):
+    for dx, dy in ((1.015, 0.0), (0.0, 1.015), (1.012, 1.012)):
         b = _polygons([_square(dx, dy)], [0.01])
         checker = SatChecker(tolerance_m)
         assert checker.overlap_pairs(a, b).tolist() == [True], (dx, dy)
         assert checker.overlap_all(a, b).tolist() == [[True]], (dx, dy)
         assert checker.overlap_all(b, a).tolist() == [[True]], (dx, dy)
-    # Beyond both slacks, the boxes alone decide: clear.
-    far = _polygons([_square(1.05, 0.0)], [0.01])
+    # Beyond both slacks (25 mm apart, within three), the boxes alone decide: clear.
+    far = _polygons([_square(1.025, 0.0)], [0.01])
     checker = SatChecker(tolerance_m)
     assert checker.overlap_pairs(a, far).tolist() == [False]
     assert checker.stats == SatStats(pairs=1, box=1)
+    for first, second in ((a, far), (far, a)):
+        assert checker.overlap_all(first, second).tolist() == [[False]]
+        assert checker.stats == SatStats(pairs=1, box=1)
+
+
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
+def test_verdicts_are_boolean_arrays_at_both_entry_points() -> None:
+    """``overlap_pairs`` and ``overlap_all`` return numpy bool arrays (callers negate and mask
+    with them), with no pair, with only box-decided pairs and with pairs the kernel decides."""
+    checker = SatChecker(TOL_M)
+    none = convex_polygons(np.zeros((0, 3, 2)))
+    a, b = _polygons([c[0] for c in CASES]), _polygons([c[1] for c in CASES])
+    far = _polygons([_square(50.0, 50.0)] * len(CASES))
+    for first, second in ((none, none), (a, far), (a, b)):
+        assert checker.overlap_pairs(first, second).dtype == np.bool_
+        assert checker.overlap_all(first, second).dtype == np.bool_
+
+
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
+def test_the_box_pad_covers_rounding_at_large_coordinates() -> None:
+    """With tolerance 0 the band is thr = 64u M (M the largest coordinate magnitude): two unit
+    squares near x = 1,000 m, 2^-40 m apart along x (below thr, 7.1e-12 m), collide in either
+    order at both entry points, decided by the full test; 2^-34 m apart (above both boxes'
+    pads) the boxes separate them."""
+    checker = SatChecker(0.0)
+    a = _polygons([_square(1000.0, 0.0)])
+    for gap, verdict, stats in (
+        (2.0**-40, True, _stats(full_sat=1)),
+        (2.0**-34, False, _stats(box=1)),
+    ):
+        b = _polygons([_square(1001.0 + gap, 0.0)])
+        for first, second in ((a, b), (b, a)):
+            assert checker.overlap_pairs(first, second).tolist() == [verdict], gap
+            assert checker.stats.as_dict() == stats
+            assert checker.overlap_all(first, second).tolist() == [[verdict]], gap
+            assert checker.stats.as_dict() == stats
+
+
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
+def test_the_centre_line_joins_the_box_centres() -> None:
+    """A unit square and a 1 x 64 m rectangle beyond its corner (1, 1), 0.85 x the tolerance
+    apart along x and y: within the band along both axes, along the line through the box
+    centres (nearly vertical: 0.88 x the tolerance) and along every edge normal, so the pair
+    collides; it lies 1.2 x the tolerance apart along the diagonal, which is not an axis the
+    check may use. Decided by the full test, in either order, at both entry points."""
+    g = 0.85 * TOL_M
+    tall = [[1.0 + g, 1.0 + g], [2.0 + g, 1.0 + g], [2.0 + g, 65.0 + g], [1.0 + g, 65.0 + g]]
+    a, b = _polygons([_square(0.0, 0.0)]), _polygons([tall])
+    checker = SatChecker(TOL_M)
+    for first, second in ((a, b), (b, a)):
+        assert checker.overlap_pairs(first, second).tolist() == [True]
+        assert checker.stats.as_dict() == _stats(full_sat=1)
+        assert checker.overlap_all(first, second).tolist() == [[True]]
+        assert checker.stats.as_dict() == _stats(full_sat=1)
+
+
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
+@pytest.mark.parametrize(
+    ("depth", "step"),
+    [(17.0 / 16.0, "certificate"), (1.0, "full_sat"), (0.5, "full_sat")],
+    ids=["beyond the margin", "at the margin", "within the margin"],
+)
+def test_a_certificate_needs_the_margin_above_rounding(depth: float, step: str) -> None:
+    """A triangle's apex ``depth`` x 2^-26 m inside the unit square [1023, 1024]^2 (M = 1,024
+    m, so the certificate margin 8 CERT_KAPPA M^2 is 2^-26 for this edge of length 1): deeper
+    than the margin it certifies the overlap; at or within it, rounding could have put it there,
+    and the full test decides. The pair collides in every case, in either order."""
+    x = 1023.0 + depth * 2.0**-26
+    tri = [[1022.0, 1023.25], [1022.0, 1023.75], [x, 1023.5]]
+    a, b = _polygons([tri]), _polygons([_square(1023.0, 1023.0)])
+    checker = SatChecker(TOL_M)
+    for first, second in ((a, b), (b, a)):
+        assert checker.overlap_pairs(first, second).tolist() == [True]
+        assert checker.stats.as_dict() == _stats(**{step: 1})
+
+
+@pytest.mark.requirement("SR-SAT-1", kind="example", code=SAT)
+def test_the_edge_normal_tests_take_each_pair_once_in_bounded_passes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """2 (FULL_CHUNK_PAIRS + 3) pairs that only the full test decides (FULL_CLEAR and
+    FULL_HIT in turn): it sees every such pair exactly once, at most FULL_CHUNK_PAIRS at a
+    time, its scratch within the module's bound (2 K^2 2 FULL_CHUNK_PAIRS values; SR-RUN-5)."""
+    import safety.geometry.sat as sat
+
+    seen: list[int] = []
+    inner = sat._separated_full
+
+    def spy(*args: Any) -> Any:
+        seen.extend(args[3].tolist())
+        assert args[3].size <= FULL_CHUNK_PAIRS
+        return inner(*args)
+
+    monkeypatch.setattr(sat, "_separated_full", spy)
+    copies = FULL_CHUNK_PAIRS + 3
+    order = [c for _ in range(copies) for c in (FULL_CLEAR, FULL_HIT)]
+    a, b = _polygons([c[0] for c in order]), _polygons([c[1] for c in order])
+    checker = SatChecker(TOL_M)
+    assert checker.overlap_pairs(a, b).tolist() == [c[2] for c in order]
+    assert sorted(seen) == list(range(len(order)))
+    k = a.vertices_m.shape[1]
+    scratch = checker._ws._buffers
+    assert scratch["full"].size <= 2 * k * k * 2 * FULL_CHUNK_PAIRS
+    assert scratch["kernel"].size <= 10 * k * 2 * CHUNK_PAIRS
