@@ -37,12 +37,14 @@ from pipeline.errors import EvidenceError
 from pipeline.jsoncodec import jsonable
 
 __all__ = [
+    "MIN_FIT_POINTS",
     "IidChecks",
     "LatencyStats",
     "PwcetReport",
     "TailFit",
     "exceedance_plot",
     "fit_gev",
+    "fit_gev_maxima",
     "fit_gpd",
     "iid_checks",
     "latency_stats",
@@ -171,13 +173,41 @@ def fit_gev(
 ) -> TailFit:
     """GEV fit of block maxima and its pWCET [s] at ``exceedance_prob`` per cycle."""
     x = _samples(samples)
-    n_blocks = x.size // block_size
-    if block_size < 1 or n_blocks < MIN_FIT_POINTS:
+    n_blocks = x.size // block_size if block_size >= 1 else 0
+    if n_blocks < MIN_FIT_POINTS:
         raise EvidenceError(
             f"GEV: {x.size} samples make {n_blocks} blocks of {block_size}; expected at least "
             f"{MIN_FIT_POINTS} blocks"
         )
     maxima = x[: n_blocks * block_size].reshape(n_blocks, block_size).max(axis=1)
+    return fit_gev_maxima(
+        maxima, block_size=block_size, exceedance_prob=exceedance_prob, gof_mc=gof_mc, seed=seed
+    )
+
+
+def fit_gev_maxima(
+    maxima_s: npt.ArrayLike,
+    *,
+    block_size: int,
+    exceedance_prob: float = 1e-9,
+    gof_mc: int = 0,
+    seed: int = 0,
+) -> TailFit:
+    """GEV fit of given block maxima [s], each the largest of ``block_size`` or more cycles
+    (a closed-loop campaign's runs: one block per run, the largest cycle of each), and its
+    pWCET [s] at ``exceedance_prob`` per cycle (SR-TIM-1, SR-RUN-8).
+
+    Blocks of unequal length are read as blocks of the shortest (``block_size``): a longer
+    block's maximum is stochastically larger, so the fitted tail only grows, and the per-block
+    probability ``1 - (1 - p)^B`` is smallest at the smallest B, which takes the fitted
+    distribution further into its tail: both err on the safe side.
+    """
+    maxima = _samples(maxima_s)
+    if block_size < 1 or maxima.size < MIN_FIT_POINTS:
+        raise EvidenceError(
+            f"GEV: {maxima.size} block maxima of {block_size} cycles; expected at least "
+            f"{MIN_FIT_POINTS} blocks of at least one cycle"
+        )
     gumbel_loc, gumbel_scale = stats.gumbel_r.fit(maxima)
     guess = {"loc": float(gumbel_loc), "scale": float(gumbel_scale)}
     starts = [(c, guess) for c in (0.0, 0.2, -0.2, 0.5, -0.5)]
@@ -189,7 +219,7 @@ def fit_gev(
         shape_xi=-c,
         loc=loc,
         scale=scale,
-        n_fit=int(n_blocks),
+        n_fit=int(maxima.size),
         pwcet_s=float(stats.genextreme.isf(per_block, c, loc, scale)),
         exceedance_prob=exceedance_prob,
         ks_statistic=float(ks.statistic),

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pipeline.types import FloatArray
 from safety.campaign import CampaignRow
 
 if TYPE_CHECKING:
@@ -43,6 +44,7 @@ __all__ = [
     "closest_figure",
     "command_mix",
     "contact_bound",
+    "cpu_block_maxima",
     "cpu_ms_summary",
     "nuisance_causes",
     "upper_limit",
@@ -136,6 +138,16 @@ def cpu_ms_summary(rows: Sequence[CampaignRow]) -> dict[str, float]:
         "max_p99": max(t["p99"] for t in timed),
         "max": max(t["max"] for t in timed),
     }
+
+
+def cpu_block_maxima(rows: Sequence[CampaignRow]) -> tuple[FloatArray, int]:
+    """Each timed run's slowest cycle [s] of thread CPU time, and the fewest cycles any of those
+    runs had: block maxima for the extreme-value fit of the cycle time (SR-TIM-1; the
+    campaign is the largest latency sample). Runs without timings (failed rows) are left out;
+    no timed run gives an empty array and 0."""
+    timed = [r for r in rows if r.cpu_ms and r.cycles > 0]
+    maxima = np.array([r.cpu_ms["max"] for r in timed], dtype=np.float64) * 1e-3
+    return maxima, min((r.cycles for r in timed), default=0)
 
 
 def command_mix(rows: Sequence[CampaignRow]) -> Counter[str]:

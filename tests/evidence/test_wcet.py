@@ -11,6 +11,7 @@ from scipy import stats
 from evidence.wcet import (
     exceedance_plot,
     fit_gev,
+    fit_gev_maxima,
     fit_gpd,
     iid_checks,
     latency_stats,
@@ -49,6 +50,24 @@ def test_exponential_tail_is_recovered() -> None:
     # The fitted tails give back the exceedance probability they were solved for.
     assert gev.exceedance(gev.pwcet_s) == pytest.approx(1e-9, rel=1e-6)
     assert gpd.exceedance(gpd.pwcet_s) == pytest.approx(1e-9, rel=1e-6)
+
+
+@pytest.mark.requirement("SR-TIM-1", kind="example", code=WCET)
+def test_given_block_maxima_fit_as_the_blocks_they_came_from() -> None:
+    """A campaign hands over each run's slowest cycle: fitting those maxima is fitting the
+    blocks of the same samples, and calling the blocks shorter than they were (the shortest
+    run's length) gives a larger pWCET, never a smaller one."""
+    rng = np.random.default_rng(5)
+    samples = rng.exponential(2e-3, 12_000)
+    maxima = samples.reshape(100, 120).max(axis=1)
+    whole = fit_gev(samples, block_size=120)
+    given = fit_gev_maxima(maxima, block_size=120)
+    assert (given.n_fit, given.block_size) == (100, 120)
+    assert given.pwcet_s == whole.pwcet_s
+    assert given.shape_xi == whole.shape_xi
+    shorter = fit_gev_maxima(maxima, block_size=90)
+    assert shorter.pwcet_s > given.pwcet_s
+    assert shorter.exceedance(shorter.pwcet_s) == pytest.approx(1e-9, rel=1e-6)
 
 
 def test_bounded_tail_has_negative_shape_and_stays_below_its_end_point() -> None:
@@ -105,6 +124,12 @@ def test_bad_samples_are_named() -> None:
         latency_stats([])
     with pytest.raises(EvidenceError, match="expected at least 10 blocks"):
         fit_gev(np.ones(100), block_size=20)
+    with pytest.raises(EvidenceError, match="expected at least 10 blocks"):
+        fit_gev(np.ones(100), block_size=0)
+    with pytest.raises(EvidenceError, match="9 block maxima of 120 cycles"):
+        fit_gev_maxima(np.ones(9), block_size=120)
+    with pytest.raises(EvidenceError, match="10 block maxima of 0 cycles"):
+        fit_gev_maxima(np.ones(10), block_size=0)
     with pytest.raises(EvidenceError, match=r"exceedance_prob = 2"):
         pwcet(np.ones(1000), exceedance_prob=2.0)
 

@@ -38,6 +38,7 @@ from safety.campaign_stats import (
     availability_table,
     by_scenario,
     contact_bound,
+    cpu_block_maxima,
     nuisance_causes,
     upper_limit,
 )
@@ -371,3 +372,45 @@ def test_the_command_runs_reports_and_resumes(tmp_path: Path) -> None:
     assert json.loads(lines[1])["nuisance_cycles"] is not None
     assert json.loads(lines[3])["progress_share"] is None  # this call ran without --oracle
     assert json.loads(lines[3])["nuisance_cycles"] is None  # ... and without the shadow
+
+
+@pytest.mark.requirement("SR-TIM-1", kind="example", code=["safety/campaign_stats.py"])
+def test_each_timed_run_gives_its_slowest_cycle_as_a_block_maximum() -> None:
+    rows = [
+        replace(_row("random_encounter", 1), cpu_ms={"p50": 9.0, "p99": 20.0, "max": 31.5}),
+        replace(_row("random_encounter", 2), cycles=44),
+        failed_row(Encounter("random_encounter", 3, 5.0), "E: y"),
+    ]
+    maxima, cycles = cpu_block_maxima(rows)
+    assert maxima.tolist() == [0.0315, 0.030]
+    assert cycles == 44
+    empty, none = cpu_block_maxima(rows[2:])
+    assert (empty.size, none) == (0, 0)
+
+
+@pytest.mark.requirement("SR-TIM-1", kind="example", code=["evidence/cli/campaign.py"])
+def test_a_finished_campaign_is_reported_with_the_cycle_pwcet(tmp_path: Path) -> None:
+    """Twelve finished runs: the command starts no cluster, reports the bound and fits the
+    runs' slowest cycles; with nine runs it says the fit needs ten."""
+    path = tmp_path / "c.jsonl"
+    slowest = [30.0 + 0.7 * i + (i % 3) for i in range(12)]
+    with CampaignLog.open(path, SafecaseConfig()) as log:
+        for seed, worst in enumerate(slowest):
+            log.add(
+                replace(
+                    _row("random_encounter", seed),
+                    cpu_ms={"p50": 10.0, "p99": 20.0, "max": worst},
+                )
+            )
+    args = ["campaign", "--duration", "5", "--out", str(path)]
+    result = CliRunner().invoke(app, [*args, "--encounters", "12"])
+    assert result.exit_code == 0, result.output
+    assert "Dask dashboard" not in result.output
+    assert "12 of 12 runs done" in result.output
+    text = " ".join(result.output.split())  # rich wraps long lines
+    assert "cycle CPU pWCET at 1e-9 per cycle: bound " in text
+    assert "the slowest cycle 39.7 ms" in text
+    assert "GEV of the slowest cycle of 12 runs, blocks of 50 cycles or more" in text
+    fewer = CliRunner().invoke(app, [*args, "--encounters", "9"])
+    assert fewer.exit_code == 0, fewer.output
+    assert "needs the slowest cycle of at least 10 timed runs (have 9)" in fewer.output
