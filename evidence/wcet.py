@@ -208,6 +208,10 @@ def fit_gev_maxima(
             f"GEV: {maxima.size} block maxima of {block_size} cycles; expected at least "
             f"{MIN_FIT_POINTS} blocks of at least one cycle"
         )
+    if np.ptp(maxima) == 0.0:
+        raise EvidenceError(
+            f"GEV: all {maxima.size} block maxima are {float(maxima[0])!r} s; a tail needs spread"
+        )
     gumbel_loc, gumbel_scale = stats.gumbel_r.fit(maxima)
     guess = {"loc": float(gumbel_loc), "scale": float(gumbel_scale)}
     starts = [(c, guess) for c in (0.0, 0.2, -0.2, 0.5, -0.5)]

@@ -134,7 +134,7 @@ def test_the_contact_rate_is_bounded_by_a_campaign(
     evidence.plot("closest approach per run", closest_figure(rows))
     maxima, cycles = cpu_block_maxima(rows)
     if maxima.size >= MIN_FIT_POINTS:  # 300 runs under certify; a handful under ci
-        fit = fit_gev_maxima(maxima, block_size=cycles)
+        fit = fit_gev_maxima(maxima, block_size=cycles)  # EvidenceError only without spread
         evidence.note(
             f"cycle thread CPU time, the campaign as block maxima (SR-TIM-1): the slowest "
             f"cycle of each of {fit.n_fit} runs ({cycles} cycles or more each) is "

@@ -27,6 +27,7 @@ from rich.table import Table
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out
 from evidence.wcet import MIN_FIT_POINTS, fit_gev_maxima
 from pipeline.config import SafecaseConfig
+from pipeline.errors import EvidenceError
 from safety.campaign import (
     CampaignError,
     CampaignLog,
@@ -212,7 +213,11 @@ def _report_pwcet(rows: list[CampaignRow]) -> None:
             highlight=False,
         )
         return
-    fit = fit_gev_maxima(maxima, block_size=cycles)
+    try:
+        fit = fit_gev_maxima(maxima, block_size=cycles)
+    except EvidenceError as exc:
+        out.print(f"cycle CPU pWCET: no fit ({exc})", highlight=False, markup=False)
+        return
     verdict = "fits" if fit.fit_ok else "REJECTED by the KS test at 5 %"
     slowest = float(maxima.max())
     out.print(

@@ -128,6 +128,8 @@ def test_bad_samples_are_named() -> None:
         fit_gev(np.ones(100), block_size=0)
     with pytest.raises(EvidenceError, match="9 block maxima of 120 cycles"):
         fit_gev_maxima(np.ones(9), block_size=120)
+    with pytest.raises(EvidenceError, match=r"all 12 block maxima are 0.03 s; a tail needs spread"):
+        fit_gev_maxima(np.full(12, 0.03), block_size=120)
     with pytest.raises(EvidenceError, match="10 block maxima of 0 cycles"):
         fit_gev_maxima(np.ones(10), block_size=0)
     with pytest.raises(EvidenceError, match=r"exceedance_prob = 2"):

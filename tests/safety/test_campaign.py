@@ -414,3 +414,14 @@ def test_a_finished_campaign_is_reported_with_the_cycle_pwcet(tmp_path: Path) ->
     fewer = CliRunner().invoke(app, [*args, "--encounters", "9"])
     assert fewer.exit_code == 0, fewer.output
     assert "needs the slowest cycle of at least 10 timed runs (have 9)" in fewer.output
+    flat = tmp_path / "flat.jsonl"
+    with CampaignLog.open(flat, SafecaseConfig()) as log:
+        for seed in range(10):
+            log.add(_row("random_encounter", seed))
+    same = CliRunner().invoke(
+        app, ["campaign", "--duration", "5", "--out", str(flat), "--encounters", "10"]
+    )
+    assert same.exit_code == 0, same.output
+    assert "no fit (GEV: all 10 block maxima are 0.03 s; a tail needs spread)" in " ".join(
+        same.output.split()
+    )
