@@ -37,7 +37,7 @@ __all__ = ["ANGLE_GUARD_RAD", "cone_half_angles_rad", "directed_closing", "direc
 
 ANGLE_GUARD_RAD = 1e-9
 """Added to every cone half-angle read off a polygon: float rounding stays on the safe side."""
-# Reach vertices closer than this to the apex carry no direction [m].
+# Reach vertices within this distance of the apex carry no direction [m].
 _APEX_M = 1e-9
 
 
