@@ -7,8 +7,9 @@ away, brakes to rest and reverses towards the robot), in clear air (``--weather`
 scenario's own fog the LiDAR's backscatter holds the robot at rest from its first cycles, so
 nothing would be measured while moving), run in closed loop by the runtime twice per seed: with
 the LiDAR alone (``runtime.sim_sensors = []``) and with the simulated radar beside it
-(``["radar"]``, :mod:`pipeline.sources.sim.sensors_source`), the chain running the radar's
-front-end with the robot's pose and twist. Each run decides its own commands, so the two runs of
+(``["radar"]``, :mod:`pipeline.sources.sim.sensors_source`: at its own ``radar.rate_hz``, each
+frame's returns from its newest scan), the chain running the radar's front-end with the robot's
+pose and twist. Each run decides its own commands, so the two runs of
 a seed part once the radar changes a decision; the frames are counted from each run's own true
 reversal. The reversal counts as detected at the first cycle, at or after the first cycle at
 which the tug's true velocity towards the robot exceeds :data:`THRESHOLD_MPS` ("true"), at which

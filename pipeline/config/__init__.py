@@ -151,6 +151,24 @@ class SafecaseConfig(Section):
         return self
 
     @model_validator(mode="after")
+    def _sensor_streams_stay_fresh(self) -> SafecaseConfig:
+        # SR-FUS-1, SR-FUS-9: a capture is fused while its age stays within max_age - skew; a
+        # sensor whose period exceeds that goes stale between two captures, every period.
+        f = self.fusion
+        for sensor, rate_hz, age_key in (
+            ("thermal", self.thermal.rate_hz, "thermal_max_age_s"),
+            ("radar", self.radar.rate_hz, "radar_max_age_s"),
+        ):
+            window_s = getattr(f, age_key) - f.clock_skew_s
+            if 1.0 / rate_hz > window_s:
+                raise ValueError(
+                    f"{sensor}.rate_hz = {rate_hz!r}: allowed: at least {1.0 / window_s:.4g} "
+                    f"(1 / (fusion.{age_key} - fusion.clock_skew_s) = 1 / ({getattr(f, age_key)} "
+                    f"- {f.clock_skew_s})): each capture would go stale before the next one"
+                )
+        return self
+
+    @model_validator(mode="after")
     def _footprint_holds_the_robot(self) -> SafecaseConfig:
         # The governor and the planner check the configured footprint; the simulated robot
         # must fit inside it, or the closed loop would certify a smaller robot than it drives.

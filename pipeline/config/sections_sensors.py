@@ -18,7 +18,10 @@ from pipeline.config.base import Section
 class ThermalSection(Section):
     """LWIR camera (#22: FLIR Boson+ 640 class) and its detector (SR-FUS-5, SR-FUS-6).
 
-    Pinhole camera of ``width_px`` x ``height_px`` with ``hfov_deg`` across, at ``rate_hz``,
+    Pinhole camera of ``width_px`` x ``height_px`` with ``hfov_deg`` across, capturing at
+    ``rate_hz`` (the simulated camera on its own clock, :mod:`pipeline.sources.sim.
+    sensor_timing`; ``1 / rate_hz`` may not exceed ``fusion.thermal_max_age_s -
+    fusion.clock_skew_s``, checked at load: a slower stream would go stale between two frames),
     mounted at ``(mount_x_m, mount_y_m, mount_z_m)`` in the robot frame, turned
     ``mount_yaw_deg`` (counter-clockwise) and pitched ``mount_pitch_deg`` down; ``netd_c`` is
     the simulated pixel noise. The detector keeps pixels warmer than the frame's ambient (its
@@ -75,9 +78,12 @@ class ThermalSection(Section):
 class RadarSection(Section):
     """4-D imaging radar (#24: Continental ARS548 class) and its front-end (SR-FUS-7).
 
-    The radar is mounted ``mount_z_m`` above the ground (its returns carry the mount's position
-    in the robot frame); measurement noise ``range_std_m`` and ``azimuth_std_deg`` (the Doppler
-    noise is ``fusion.radar_doppler_std_mps``).
+    The radar scans at ``rate_hz`` (#24: 20 Hz; the simulated radar on its own clock,
+    :mod:`pipeline.sources.sim.sensor_timing`; ``1 / rate_hz`` may not exceed
+    ``fusion.radar_max_age_s - fusion.clock_skew_s``, checked at load: a slower stream would go
+    stale between two scans), mounted ``mount_z_m`` above the ground (its returns carry the
+    mount's position in the robot frame); measurement noise ``range_std_m`` and
+    ``azimuth_std_deg`` (the Doppler noise is ``fusion.radar_doppler_std_mps``).
     The front-end drops returns below ``min_rcs_dbsm`` or ``min_snr_db``, returns lower than
     ``min_height_m`` above the ground (clutter, from the elevation) and returns farther than
     ``ghost_margin_m`` behind a mapped reflector along their ray (multipath ghosts); the rest are
@@ -90,6 +96,7 @@ class RadarSection(Section):
     information persists into the next prediction instead of serving one cycle only.
     """
 
+    rate_hz: float = Field(20.0, gt=0.0, le=240.0)
     mount_z_m: float = Field(0.5, gt=0.0, le=10.0)
     range_std_m: float = Field(0.15, gt=0.0, le=10.0)
     azimuth_std_deg: float = Field(0.3, gt=0.0, le=20.0)
