@@ -47,6 +47,8 @@ CLAIMED: tuple[str, ...] = (
     "safety/geometry/envelopes.py",
     "safety/geometry/sat.py",
     "safety/geometry/swept.py",
+    "safety/closing.py",
+    "safety/bodies.py",
 )
 
 
