@@ -1,8 +1,10 @@
 """Closed-loop campaigns: many seeded encounters, one row each, kept as they arrive (SR-RUN-8).
 
-An :class:`Encounter` is a scenario, a seed and a length; :func:`run_encounter` runs it in
+An :class:`~safety.campaign_plan.Encounter` is a scenario (a clear-air one, or an airside one in
+a weather), a seed and a length (:mod:`safety.campaign_plan`); :func:`run_encounter` runs it in
 closed loop exactly as ``safecase run`` does (the runtime deciding after every scan, the
-simulated robot obeying through its actuation latency) and returns its :class:`CampaignRow`:
+simulated robot obeying through its actuation latency, with the simulated thermal camera and
+radar that ``runtime.sim_sensors`` names, SR-FUS-9) and returns its :class:`CampaignRow`:
 contacts with the robot's speed at each, the closest approach, progress along the route, the
 command mix and the per-cycle thread CPU time. Everything but the CPU times is a function of
 the encounter and the configuration alone, so the same seed gives the same :meth:`outcome` on
@@ -38,9 +40,14 @@ from pipeline.classify.model import Classifier
 from pipeline.config import ClassifySection, SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps
-from pipeline.sources.sim.scenarios import SCENARIOS, make_simulation
-from pipeline.sources.sim.simulation import BOUNDED, Simulation
 from safety.availability import Comparison, run_oracle, run_ours
+from safety.campaign_plan import (
+    NAMED,
+    Encounter,
+    encounter_plan,
+    encounter_simulation,
+    known_scenario,
+)
 from safety.run import contact_speeds, run_simulation, site_map
 from safety.runtime import Runtime
 
@@ -61,47 +68,10 @@ __all__ = [
 ]
 
 FORMAT = "safecase-campaign/1"
-NAMED = tuple(n for n in SCENARIOS if n != "random_encounter")
 
 
 class CampaignError(SafecaseError):
     """A campaign file that cannot be resumed (another configuration, not a campaign)."""
-
-
-@dataclass(frozen=True, order=True)
-class Encounter:
-    """One closed-loop run: a scenario of :data:`SCENARIOS`, its seed, its length [s]."""
-
-    scenario: str
-    seed: int
-    duration_s: float
-
-    @property
-    def key(self) -> str:
-        """The encounter's name in a campaign file (``scenario/seed/duration``)."""
-        return f"{self.scenario}/{self.seed}/{self.duration_s:g}"
-
-
-def encounter_plan(
-    encounters: int,
-    *,
-    named_seeds: int = 0,
-    duration_s: float = 15.0,
-    first_seed: int = 0,
-    scenarios: Sequence[str] = NAMED,
-) -> list[Encounter]:
-    """``named_seeds`` seeds of every scenario in ``scenarios`` then ``encounters`` random
-    encounters, seeds counted from ``first_seed``; every run ``duration_s`` long."""
-    unknown = [s for s in scenarios if s not in SCENARIOS]
-    if unknown:
-        raise ValueError(f"unknown scenario(s) {unknown}; known: {', '.join(SCENARIOS)}")
-    plan = [
-        Encounter(name, first_seed + s, duration_s)
-        for name in scenarios
-        for s in range(named_seeds)
-    ]
-    plan += [Encounter("random_encounter", first_seed + s, duration_s) for s in range(encounters)]
-    return plan
 
 
 @dataclass(frozen=True)
@@ -155,6 +125,7 @@ class CampaignRow:
             "scenario": self.encounter.scenario,
             "seed": self.encounter.seed,
             "duration_s": self.encounter.duration_s,
+            "weather": self.encounter.weather,
             "cycles": self.cycles,
             "commands": dict(sorted(self.commands.items())),
             "contacts": self.contacts,
@@ -174,12 +145,17 @@ class CampaignRow:
         """A row read back from its line (``KeyError`` / ``TypeError`` when malformed).
 
         The availability keys may be missing (the row then has no shadow figures, class
-        docstring); every other key is required."""
+        docstring), and so may ``weather`` (a row of a scenario in its own weather); every
+        other key is required. A weather the encounter refuses raises ``ValueError``."""
         nuisance = data.get("nuisance_cycles")
         share = data.get("progress_share")
+        weather = data.get("weather")
         return cls(
             encounter=Encounter(
-                str(data["scenario"]), int(data["seed"]), float(data["duration_s"])
+                str(data["scenario"]),
+                int(data["seed"]),
+                float(data["duration_s"]),
+                None if weather is None else str(weather),
             ),
             cycles=int(data["cycles"]),
             commands={str(k): int(v) for k, v in data["commands"].items()},
@@ -220,12 +196,12 @@ def run_encounter(
 
     Raises whatever the run raises; a campaign turns that into a :func:`failed_row`.
     """
-    if encounter.scenario not in SCENARIOS:
+    if not known_scenario(encounter.scenario):
         raise ValueError(f"unknown scenario {encounter.scenario!r}")
     if oracle and not shadow:
         raise ValueError("oracle=True needs the shadow oracle (shadow=True)")
     model = _classifier(config.classify)
-    sim = _simulation(config, encounter)
+    sim = encounter_simulation(config, encounter)
     if shadow:
         summary, watcher = run_ours(config, sim, model)
         flags = watcher.nuisance()
@@ -244,7 +220,7 @@ def run_encounter(
     cpu = np.asarray(summary.cpu_s, dtype=float) * 1e3
     share = None
     if oracle:
-        best = run_oracle(config, _simulation(config, encounter), model)
+        best = run_oracle(config, encounter_simulation(config, encounter), model)
         pair = Comparison(
             encounter.scenario,
             encounter.seed,
@@ -276,13 +252,6 @@ def run_encounter(
         nuisance_cycles=nuisance,
         nuisance_causes=dict(causes),
         progress_share=share,
-    )
-
-
-def _simulation(config: SafecaseConfig, encounter: Encounter) -> Simulation:
-    """A fresh simulation of ``encounter``, keeping a bounded result (a campaign keeps rows)."""
-    return make_simulation(
-        config, encounter.scenario, encounter.seed, encounter.duration_s, retention=BOUNDED
     )
 
 

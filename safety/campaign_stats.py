@@ -15,6 +15,9 @@ STOP share of cycles, the nuisance share of cycles (a STOP the oracle would not 
 in the same situation, so never more than the STOP share), what set our command in those
 cycles, and the mean and least of our progress over the oracle's closed loop where the oracle
 ran (``safecase campaign --oracle``).
+
+Both are given per scenario and overall; an airside scenario set in another weather than its
+own is its own line, ``scenario@weather``.
 """
 
 from __future__ import annotations
@@ -96,35 +99,52 @@ def contact_bound(rows: Sequence[CampaignRow]) -> RateBound:
 
 
 def by_scenario(rows: Sequence[CampaignRow]) -> dict[str, RateBound]:
-    """:func:`contact_bound` of each scenario's rows, scenarios in first-seen order."""
+    """:func:`contact_bound` of each scenario's rows, scenarios in first-seen order (an airside
+    scenario in another weather than its own apart, as ``scenario@weather``)."""
     return {name: contact_bound(group) for name, group in _groups(rows).items()}
 
 
 def _groups(rows: Sequence[CampaignRow]) -> dict[str, list[CampaignRow]]:
-    """Each scenario's rows, scenarios in first-seen order."""
+    """Each scenario's rows by :attr:`~safety.campaign_plan.Encounter.label` (``scenario`` or
+    ``scenario@weather``: fog and clear air are not pooled), in first-seen order."""
     groups: dict[str, list[CampaignRow]] = {}
     for row in rows:
-        groups.setdefault(row.encounter.scenario, []).append(row)
+        groups.setdefault(row.encounter.label, []).append(row)
     return groups
 
 
-BOUND_COLUMNS = ("scenario", "runs", "contacts while moving", "runs that raised", "95 %", "99 %")
+BOUND_COLUMNS = (
+    "scenario",
+    "runs",
+    "contacts while moving",
+    "runs that raised",
+    "closest [m]",
+    "95 %",
+    "99 %",
+)
 
 
 def bound_table(rows: Sequence[CampaignRow]) -> list[list[str]]:
-    """:func:`by_scenario` and the overall bound as table rows (columns :data:`BOUND_COLUMNS`,
-    the last row ``all``)."""
-    return [
-        [
-            name,
-            str(b.runs),
-            str(b.violations - b.errors),
-            str(b.errors),
-            f"{b.upper_95:.3g}",
-            f"{b.upper_99:.3g}",
-        ]
-        for name, b in {**by_scenario(rows), "all": contact_bound(rows)}.items()
-    ]
+    """:func:`by_scenario` and the overall bound as table rows (columns :data:`BOUND_COLUMNS`:
+    with the least closest approach of the group's runs [m], ``-`` without any object; the last
+    row ``all``)."""
+    groups = {**_groups(rows), "all": list(rows)}
+    table = []
+    for name, group in groups.items():
+        b = contact_bound(group)
+        closest = min((r.closest_m for r in group), default=float("inf"))
+        table.append(
+            [
+                name,
+                str(b.runs),
+                str(b.violations - b.errors),
+                str(b.errors),
+                f"{closest:.2f}" if np.isfinite(closest) else "-",
+                f"{b.upper_95:.3g}",
+                f"{b.upper_99:.3g}",
+            ]
+        )
+    return table
 
 
 def cpu_ms_summary(rows: Sequence[CampaignRow]) -> dict[str, float]:

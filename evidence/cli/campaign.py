@@ -9,11 +9,13 @@ call resumes) and reports the bound and the availability figures of
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -26,8 +28,9 @@ from rich.table import Table
 
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out
 from evidence.wcet import MIN_FIT_POINTS, fit_gev_maxima
-from pipeline.config import SafecaseConfig
+from pipeline.config import SafecaseConfig, overridden
 from pipeline.errors import EvidenceError
+from pipeline.sources.sim.weather import WEATHER_PRESETS
 from safety.campaign import (
     CampaignError,
     CampaignLog,
@@ -59,6 +62,27 @@ def campaign_command(
         int, typer.Option(min=0, help="Random encounters (random_encounter seeds).")
     ] = 300,
     named_seeds: Annotated[int, typer.Option(min=0, help="Seeds per named scenario.")] = 0,
+    airside_seeds: Annotated[
+        int,
+        typer.Option(
+            min=0, help="Seeds per airside scenario (fog, night: set apart) in each --weather."
+        ),
+    ] = 0,
+    weather: Annotated[
+        str,
+        typer.Option(
+            help="Weathers of the airside scenarios, comma-separated: 'own' (the scenario's "
+            "own) or presets (" + ", ".join(WEATHER_PRESETS) + ")."
+        ),
+    ] = "own",
+    sensors: Annotated[
+        str | None,
+        typer.Option(
+            help="Simulated sensors beside the LiDAR, comma-separated: thermal, radar, or none "
+            "(sets runtime.sim_sensors, so the file's configuration hash records it; default: "
+            "as configured)."
+        ),
+    ] = None,
     duration: Annotated[float, typer.Option(min=0.5, help="Run length in seconds.")] = 15.0,
     first_seed: Annotated[int, typer.Option(min=0, help="First seed of every scenario.")] = 0,
     workers: Annotated[
@@ -99,8 +123,14 @@ def campaign_command(
     counts its nuisance STOPs against a shadow oracle (unless --no-shadow); with --oracle it is
     also compared with the oracle's own closed loop (progress share).
 
+    The airside scenarios (--airside-seeds) run in their own weather or in each --weather
+    listed; their rows are reported per scenario@weather. --sensors gives the robot the
+    simulated thermal camera and radar (SR-FUS-9).
+
     Example: safecase campaign --encounters 300 --named-seeds 3 --out out/campaign/c300.jsonl
     Example: safecase campaign --encounters 10000 --duration 12 --no-shadow --out c10k.jsonl
+    Example: safecase campaign --encounters 0 --airside-seeds 5 --weather own,clear,night,rain
+    --sensors thermal,radar --oracle --duration 12 --out out/campaign/airside.jsonl
 
     Exit codes: 0 done, no contact while moving and no run failed; 1 a contact while moving or
     a run that raised (each listed); 2 bad options or configuration, a file of another
@@ -109,11 +139,19 @@ def campaign_command(
     from pipeline.distributed import open_client  # Dask loads only for this command
 
     cfg = load_config_or_exit(config)
+    weathers = _weathers(weather)
+    if sensors is not None:
+        cfg = overridden(cfg, {"runtime": {"sim_sensors": _sensors(sensors)}})
     plan = encounter_plan(
-        encounters, named_seeds=named_seeds, duration_s=duration, first_seed=first_seed
+        encounters,
+        named_seeds=named_seeds,
+        duration_s=duration,
+        first_seed=first_seed,
+        airside_seeds=airside_seeds,
+        airside_weather=weathers,
     )
     if not plan:
-        fail("--encounters 0 and --named-seeds 0: nothing to run")
+        fail("--encounters 0, --named-seeds 0 and --airside-seeds 0: nothing to run")
     if oracle and not shadow:
         fail("--oracle compares with the shadow oracle's cycles: it cannot run with --no-shadow")
     try:
@@ -143,6 +181,33 @@ def campaign_command(
             raise typer.Exit(130) from None
     keys = {e.key for e in plan}
     _report([r for r in log.rows if r.encounter.key in keys], output, plot)
+
+
+def _names(option: str, value: str, allowed: Sequence[str]) -> list[str]:
+    """The comma-separated names of ``value``, each one of ``allowed`` (exit 2 naming the
+    first that is not, and what is allowed)."""
+    names = [n.strip() for n in value.split(",")]
+    for name in names:
+        if name not in allowed:
+            fail(f"{option}: {name!r} is not one of {', '.join(allowed)}")
+    return names
+
+
+def _weathers(value: str) -> list[str | None]:
+    """``--weather``: the airside scenarios' weathers, ``own`` as None (SR-RUN-8)."""
+    names = _names("--weather", value, ["own", *WEATHER_PRESETS])
+    return [None if n == "own" else n for n in dict.fromkeys(names)]
+
+
+def _sensors(value: str) -> list[str]:
+    """``--sensors``: the value of ``runtime.sim_sensors`` (``none``: none, SR-FUS-9), in one
+    order whatever the order given, so that the same sensors give the same configuration
+    hash."""
+    sensors = ("thermal", "radar")
+    names = _names("--sensors", value, [*sensors, "none"])
+    if "none" in names and len(names) > 1:
+        fail(f"--sensors: 'none' stands alone, got {value!r}")
+    return [n for n in sensors if n in names]
 
 
 def _run(
@@ -177,12 +242,8 @@ def _run(
 
 
 def _report(rows: list[CampaignRow], output: Path, plot: Path | None) -> None:
-    table = Table(title=f"{len(rows)} runs ({output}); one-sided upper bounds of the rate")
-    for column in BOUND_COLUMNS:
-        table.add_column(column, justify="left" if column == "scenario" else "right")
-    for line in bound_table(rows):
-        table.add_row(*line)
-    out.print(table)
+    title = f"{len(rows)} runs ({output}); one-sided upper bounds of the rate"
+    out.print(_table(title, BOUND_COLUMNS, bound_table(rows)))
     _report_availability(rows)
     cpu = cpu_ms_summary(rows)
     if cpu:
@@ -201,6 +262,18 @@ def _report(rows: list[CampaignRow], output: Path, plot: Path | None) -> None:
         out.print(f"{row.encounter.key}: {what}", highlight=False, markup=False)
     if bad:
         raise typer.Exit(1)
+
+
+def _table(title: str, columns: Sequence[str], lines: list[list[str]]) -> Table:
+    """A table of ``lines`` under ``columns``, the first the scenario; no cell is cut short
+    (on a narrow console the headers wrap instead)."""
+    table = Table(title=title)
+    for i, column in enumerate(columns):
+        width = max((len(line[i]) for line in lines), default=0)
+        table.add_column(escape(column), justify="right" if i else "left", min_width=width)
+    for line in lines:
+        table.add_row(*(escape(cell) for cell in line))
+    return table
 
 
 def _report_pwcet(rows: list[CampaignRow]) -> None:
@@ -231,15 +304,11 @@ def _report_pwcet(rows: list[CampaignRow]) -> None:
 
 
 def _report_availability(rows: list[CampaignRow]) -> None:
-    table = Table(
-        title="availability: STOP and nuisance STOP (the shadow oracle would go on) as shares "
-        "of cycles; our progress over the oracle's, mean and least over runs with --oracle"
+    title = (
+        "availability: STOP and nuisance STOP (the shadow oracle would go on) as shares of "
+        "cycles; our progress over the oracle's, mean and least over runs with --oracle"
     )
-    for column in AVAILABILITY_COLUMNS:
-        table.add_column(column, justify="left" if column == "scenario" else "right")
-    for line in availability_table(rows):
-        table.add_row(*line)
-    out.print(table)
+    out.print(_table(title, AVAILABILITY_COLUMNS, availability_table(rows)))
     causes = nuisance_causes(rows)
     if causes:
         listed = ", ".join(f"{cause} {n}" for cause, n in causes.most_common())

@@ -373,10 +373,13 @@ def simulation_for_spec(
     duration: float,
     lidar: LidarSpec | None = None,
     retention: Retention = FULL,
+    *,
+    weather: str | None = None,
 ) -> Simulation:
     """A ready-to-run simulation of an already built scenario (e.g. one that is not in
     :data:`SCENARIOS`), with the scanner noise and ego braking streams drawn from ``seed`` as
-    :func:`make_simulation` draws them."""
+    :func:`make_simulation` draws them; ``weather`` names the preset it is set in
+    (``Simulation.weather``; None: not stated)."""
     sim = config.sim
     _, lidar_ss, ego_ss = np.random.SeedSequence(seed).spawn(3)
     ego_rng = np.random.default_rng(ego_ss)
@@ -404,4 +407,5 @@ def simulation_for_spec(
         name=name,
         seed=seed,
         retention=retention,
+        weather=weather,
     )

@@ -228,8 +228,9 @@ def sensors_beside(
     """``sim`` in closed loop (``upstream``, default a plain :class:`SimSource` of ``sim``) with
     the named ``sensors`` beside it: the camera at the ``thermal`` section's extrinsic (no
     calibration error) and its detector, at ``thermal.rate_hz``; the radar of
-    :func:`radar_spec`, at ``radar.rate_hz``. The camera sees ``weather`` (default: the weather
-    scenario's preset when ``sim`` is one of
+    :func:`radar_spec`, at ``radar.rate_hz``. The camera sees ``weather`` (default: the preset
+    ``sim`` is set in, ``sim.weather``; when that is not stated, the weather scenario's own
+    preset when ``sim`` is one of
     :data:`~pipeline.sources.sim.weather_scenarios.WEATHER_SCENARIOS`, else clear air). Each
     sensor's generator is seeded by the run's seed and the sensor's stream key alone; its first
     draw is the sensor's phase (:meth:`SensorClock.drawn`), the rest its noise."""
@@ -237,7 +238,9 @@ def sensors_beside(
     if (source if isinstance(source, SimSource) else source.inner).sim is not sim:
         raise ValueError("sensors_beside: upstream must run the same simulation")
     if weather is None:
-        preset = WEATHER_SCENARIOS[sim.name][1] if sim.name in WEATHER_SCENARIOS else "clear"
+        preset = sim.weather
+        if preset is None:
+            preset = WEATHER_SCENARIOS[sim.name][1] if sim.name in WEATHER_SCENARIOS else "clear"
         weather = WEATHER_PRESETS[preset]
     camera = None
     if "thermal" in sensors:

@@ -98,7 +98,9 @@ class SimResult:
 
 class Simulation:
     """One seeded run of a world with an ego robot and its scanner; ``retention`` is what its
-    result keeps (module docstring)."""
+    result keeps (module docstring); ``weather`` names the weather preset the run is set in
+    (:data:`pipeline.sources.sim.weather.WEATHER_PRESETS`; None: not stated), for the sensors
+    simulated beside it (the scanner given here is already degraded by it)."""
 
     def __init__(
         self,
@@ -114,6 +116,7 @@ class Simulation:
         seed: int = 0,
         stop_at_contact: bool = True,
         retention: Retention = FULL,
+        weather: str | None = None,
     ) -> None:
         if duration_s <= 0 or step_s <= 0:
             raise ValueError(
@@ -125,6 +128,7 @@ class Simulation:
         self.rules = rules
         self.name = name
         self.seed = seed
+        self.weather = weather
         self.duration_s = float(duration_s)
         self.stop_at_contact = stop_at_contact
         self.steps_per_scan = max(1, round(lidar.scan_period_s / step_s))

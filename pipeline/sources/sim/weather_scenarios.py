@@ -34,7 +34,7 @@ from pipeline.sources.sim.scenarios import (
     place,
     simulation_for_spec,
 )
-from pipeline.sources.sim.simulation import Simulation
+from pipeline.sources.sim.simulation import FULL, Retention, Simulation
 from pipeline.sources.sim.weather import WEATHER_PRESETS, weather_lidar
 from pipeline.sources.sim.world import SimObject, World
 
@@ -124,12 +124,16 @@ def weather_simulation(
     seed: int,
     duration_s: float,
     weather: str | None = None,
+    retention: Retention = FULL,
 ) -> Simulation:
     """A ready-to-run simulation of weather scenario ``name`` with the configured scanner in the
     scenario's weather (or the preset ``weather``, to compare the same scene in other
     conditions), its streams drawn from ``seed`` as :func:`pipeline.sources.sim.scenarios.
-    make_simulation` draws them; an unknown name or preset raises :class:`pipeline.sources.sim.
-    scenarios.ScenarioError`."""
+    make_simulation` draws them, keeping ``retention`` for its result (a campaign keeps
+    :data:`~pipeline.sources.sim.simulation.BOUNDED`). The simulation carries the preset's name
+    (``Simulation.weather``), so the simulated camera beside it sees the same weather
+    (:func:`pipeline.sources.sim.sensors_source.sensors_beside`). An unknown name or preset
+    raises :class:`pipeline.sources.sim.scenarios.ScenarioError`."""
     if name not in WEATHER_SCENARIOS:
         raise ScenarioError(
             f"unknown weather scenario {name!r}; known: {', '.join(sorted(WEATHER_SCENARIOS))}"
@@ -143,4 +147,7 @@ def weather_simulation(
     scenario_ss = np.random.SeedSequence(seed).spawn(3)[0]
     world, route = build(np.random.default_rng(scenario_ss), duration_s)
     lidar = weather_lidar(lidar_spec_from_config(config), WEATHER_PRESETS[preset])
-    return simulation_for_spec(config, ScenarioSpec(world, route), name, seed, duration_s, lidar)
+    spec = ScenarioSpec(world, route)
+    return simulation_for_spec(
+        config, spec, name, seed, duration_s, lidar, retention, weather=preset
+    )
