@@ -13,6 +13,9 @@ ORACLE_LOG := out/acoustic-oracle.log
 TEST_OUT := out/test-evidence
 # extra pytest arguments for `make pytest`, e.g. PYTEST_ARGS='-x -k stopping'
 PYTEST_ARGS ?=
+# pytest-xdist workers for `make test` (one per core; PYTEST_WORKERS=0 runs the suite in one
+# process); the evidence of every worker lands in the one bundle (SR-EVD-10)
+PYTEST_WORKERS ?= auto
 # uv resolves one lock for all supported Pythons (environment markers); only `make lock` uses it
 UV_VERSION := 0.13.9
 
@@ -62,7 +65,7 @@ typecheck: $(STAMP)
 pytest: $(STAMP)
 	rm -rf $(TEST_OUT) && mkdir -p $(TEST_OUT)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q -ra --hypothesis-profile=ci \
-	  --safecase-out=$(TEST_OUT) --safecase-enforce \
+	  -n $(PYTEST_WORKERS) --dist loadfile --safecase-out=$(TEST_OUT) --safecase-enforce \
 	  --benchmark-min-rounds=5 --benchmark-max-time=0.2 --benchmark-warmup=off \
 	  --benchmark-json=$(TEST_OUT)/benchmarks.json $(PYTEST_ARGS)
 

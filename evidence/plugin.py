@@ -36,6 +36,13 @@ from evidence.catalogue import EVIDENCE_KINDS, Catalogue, load_catalogue
 from evidence.environment import collect_environment, git_state, project_provenance
 from evidence.plugin_capture import benchmark_detail, build_item, summarise_stats
 from evidence.plugin_settings import PluginSettings, add_options, resolve_settings
+from evidence.plugin_xdist import (
+    Gatherer,
+    attach,
+    join_benchmark_parts,
+    restore_benchmarks,
+    worker_id,
+)
 from evidence.profiles import active_profile, register_profiles, set_active_profile
 from evidence.record import Recorder, current
 from pipeline.compat import UTC
@@ -63,6 +70,12 @@ class _State:
     bundle_dir: Path | None = None
     bundle: Bundle | None = None
     n_deselected: int = 0
+
+    def take(self, item: EvidenceItem, provenance: dict[str, Any], deselected: int) -> None:
+        """Add a test's evidence that an xdist worker sent (evidence.plugin_xdist)."""
+        self.items[item.nodeid] = item
+        self.n_deselected = max(self.n_deselected, deselected)
+        current().session_provenance.update(provenance)
 
 
 STATE = pytest.StashKey[_State]()
@@ -123,21 +136,10 @@ def pytest_configure(config: pytest.Config) -> None:
         hypothesis_settings.get_current_profile_name(),
     )
     set_active_profile(profile or hypothesis_settings.get_current_profile_name())
-    if _distributed(config) and (settings.out or settings.enforce):
-        # Workers would each hold part of the evidence and the bundle would record none.
-        raise pytest.UsageError(
-            "safecase: evidence cannot be collected under pytest-xdist (-n/--dist): run "
-            "without -n, or without --safecase-out/--safecase-enforce"
-        )
-    config.stash[STATE] = _State(settings, catalogue, project, case)
-
-
-def _distributed(config: pytest.Config) -> bool:
-    """True when pytest-xdist will spread the tests over worker processes."""
-    if not config.pluginmanager.has_plugin("xdist"):
-        return False
-    workers = getattr(config.option, "numprocesses", None)
-    return bool(workers) or getattr(config.option, "dist", "no") != "no"
+    state = _State(settings, catalogue, project, case)
+    config.stash[STATE] = state
+    if worker_id(config) is None:
+        config.pluginmanager.register(Gatherer(state.take), "safecase-xdist-gatherer")
 
 
 def pytest_deselected(items: list[pytest.Item]) -> None:
@@ -159,7 +161,8 @@ def _selection(session: pytest.Session, state: _State) -> dict[str, Any] | None:
     )
     return {
         "expression": expression or "deselected by a plugin",
-        "selected": len(session.items),
+        # under xdist the controller collects nothing: the tests it heard of were selected
+        "selected": len(session.items) or len(state.items),
         "deselected": state.n_deselected,
     }
 
@@ -173,6 +176,8 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 def pytest_sessionstart(session: pytest.Session) -> None:
     current().push_session()
+    if session.config.stash.get(STATE, None) is not None:
+        restore_benchmarks(session.config)
 
 
 @pytest.fixture(scope="session")
@@ -269,6 +274,20 @@ def pytest_runtest_makereport(
     if state is None:
         return
     state.reports.setdefault(item.nodeid, {})[report.when] = report
+    if report.when == "teardown" and worker_id(item.config) is not None:
+        # The teardown report is a test's last: it carries the evidence to the controller.
+        attach(
+            report,
+            build_item(
+                item,
+                state.reports[item.nodeid],
+                current().peek(),
+                state.benchmarks.get(item.nodeid),
+                state.stats.get(item.nodeid),
+            ),
+            current().session_provenance,
+            state.n_deselected,
+        )
     if report.when == "call":
         # funcargs are cleared at teardown, so read the benchmark's statistics now.
         bench = benchmark_detail(item)
@@ -357,6 +376,9 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         settings = state.settings
         if settings.out is None and not settings.enforce:
             return
+        if worker_id(session.config) is not None:
+            return  # the controller writes the bundle from what the workers sent
+        join_benchmark_parts(session.config)
         bundle = build_bundle(session, exitstatus)
         state.bundle = bundle
         if settings.out is not None:

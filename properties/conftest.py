@@ -31,6 +31,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
+    if hasattr(session.config, "workerinput"):
+        # Under pytest-xdist every worker collects the whole suite but runs only its share, and
+        # the workers already use the cores: each waiting test runs its body where it lands.
+        return
     waiting = [item for item in session.items if _waits(item)]
     if not waiting:
         return

@@ -311,18 +311,82 @@ def test_a_slice_judges_only_the_requirements_it_touches(pytester: pytest.Pytest
     assert '<testcase classname="requirements" name="SR-X-2"' in junit
 
 
-def test_evidence_under_xdist_is_refused_with_a_clear_message(pytester: pytest.Pytester) -> None:
-    # A stand-in for pytest-xdist's options (the real plugin is not a dependency).
-    pytester.makepyfile(
-        xdist="""
-def pytest_addoption(parser):
-    group = parser.getgroup("xdist")
-    group._addoption("-n", "--numprocesses", dest="numprocesses", default=None)
-    group.addoption("--dist", dest="dist", default="no")
+BENCHMARKED = """
+import pytest
+
+@pytest.mark.requirement("SR-X-2")
+def test_sum_is_fast(benchmark, evidence):
+    evidence.provenance("measured on", "this worker")
+    assert benchmark(sum, range(100)) == 4950
+
+def test_not_linked_either():
+    pass
 """
+
+
+def _comparable(data: dict[str, Any]) -> dict[str, Any]:
+    """A bundle's evidence without what differs from run to run (times, timings, how many
+    rounds a benchmark fitted in its time)."""
+    tests = {}
+    for test in data["tests"]:
+        details = [
+            {
+                k: v
+                for k, v in d.items()
+                if not k.endswith("_s") and k not in ("png_base64", "rounds")
+            }
+            for d in test["details"]
+        ]
+        tests[test["nodeid"]] = (
+            test["outcome"],
+            test["kind"],
+            test["requirement_ids"],
+            test["hypothesis"],
+            details,
+        )
+    return {
+        "tests": tests,
+        "verdicts": _verdicts(data),
+        "selection": data["selection"],
+        "certification": data["summary"]["certification"],
+    }
+
+
+@pytest.mark.requirement("SR-EVD-10")
+@pytest.mark.parametrize("selection", [(), ("-k", "not test_not_linked_either")])
+def test_evidence_under_xdist_equals_the_serial_sessions(
+    pytester: pytest.Pytester, selection: tuple[str, ...]
+) -> None:
+    pytester.makepyfile(test_m=PASSING_SUITE, test_bench=BENCHMARKED)
+    serial, serial_out = _run(pytester, "--safecase-enforce", *selection)
+    serial_out.rename(pytester.path / "serial")
+    (pytester.path / "bundle").mkdir()  # pytest-benchmark writes into an existing folder
+    spread, spread_out = _run(
+        pytester,
+        "--safecase-enforce",
+        "-n",
+        "2",
+        "--dist",
+        "loadfile",
+        f"--benchmark-json={pytester.path / 'bundle' / 'benchmarks.json'}",
+        *selection,
     )
-    pytester.syspathinsert()
-    pytester.makepyfile(test_m=PASSING_SUITE)
-    result, _ = _run(pytester, "-p", "xdist", "-n", "2")
-    assert result.ret == pytest.ExitCode.USAGE_ERROR
-    result.stderr.fnmatch_lines(["*evidence cannot be collected under pytest-xdist*"])
+    assert spread.ret == serial.ret == pytest.ExitCode.TESTS_FAILED  # SR-X-2 is not evidenced
+    serial_data = _evidence(pytester.path / "serial")
+    spread_data = _evidence(spread_out)
+    # Both test files ran, one in each worker (loadfile), and the evidence is the serial one's:
+    # outcomes, kinds, details (the SMT text, counts, samples, tables, plots, benchmark figures),
+    # Hypothesis statistics, the verdicts and the selection.
+    assert _comparable(spread_data) == _comparable(serial_data)
+    assert len(spread_data["tests"]) == (6 if not selection else 5)
+    by_id = {t["nodeid"]: t for t in spread_data["tests"]}
+    bench = by_id["test_bench.py::test_sum_is_fast"]
+    assert bench["kind"] == "measurement"
+    assert [d["type"] for d in bench["details"]] == ["benchmark"]
+    assert by_id["test_m.py::test_small"]["hypothesis"]["valid"] > 0
+    assert spread_data["provenance"]["measured on"] == "this worker"
+    # One bundle, written and signed by the controller; the workers' benchmark parts joined.
+    assert verify_bundle(spread_out).ok
+    joined = json.loads((spread_out / "benchmarks.json").read_text())
+    assert [b["name"] for b in joined["benchmarks"]] == ["test_sum_is_fast"]
+    assert not list(spread_out.glob("benchmarks.gw*.json"))
