@@ -24,6 +24,7 @@ from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig
 from pipeline.jsoncodec import dumps
 from pipeline.sources.sim.scenarios import make_simulation
+from properties.campaign_rows import campaign_row
 from safety.availability import compare
 from safety.campaign import (
     CampaignError,
@@ -56,20 +57,7 @@ def _row(
     nuisance: int | None = 4,
     share: float | None = None,
 ) -> CampaignRow:
-    return CampaignRow(
-        Encounter(scenario, seed, 5.0),
-        cycles=50,
-        commands={"PROCEED": 40, "STOP": 10},
-        contacts=len(moving),
-        moving_contacts_mps=moving,
-        closest_m=1.5,
-        progress_m=3.0,
-        route_m=30.0,
-        cpu_ms={"p50": 10.0, "p99": 20.0, "max": 30.0},
-        nuisance_cycles=nuisance,
-        nuisance_causes={} if not nuisance else {"zone:CONE": nuisance - 1, "path end": 1},
-        progress_share=share,
-    )
+    return campaign_row(Encounter(scenario, seed, 5.0), moving, nuisance=nuisance, share=share)
 
 
 @pytest.mark.requirement("SR-RUN-8", kind="property", code=["safety/campaign_stats.py"])

@@ -19,6 +19,7 @@ from pipeline.config import SafecaseConfig, default_config, overridden
 from pipeline.jsoncodec import dumps
 from pipeline.sources.sim import rig
 from pipeline.sources.sim.sensors_source import SensorsSource, sensors_beside
+from properties.campaign_rows import campaign_row
 from properties.cli_runner import run_safecase
 from safety.campaign import CampaignLog, CampaignRow, pending, run_encounter
 from safety.campaign_plan import AIRSIDE, NAMED, Encounter, encounter_plan, encounter_simulation
@@ -30,19 +31,9 @@ C10K = Path(__file__).parents[2] / "docs/findings/data/c10k.jsonl.gz"
 
 
 def _row(encounter: Encounter, *, nuisance: int = 4, moving: tuple[float, ...] = ()) -> CampaignRow:
-    return CampaignRow(
-        encounter,
-        cycles=50,
-        commands={"PROCEED": 40, "STOP": 10},
-        contacts=len(moving),
-        moving_contacts_mps=moving,
-        closest_m=1.5,
-        progress_m=3.0,
-        route_m=40.0,
-        cpu_ms={"p50": 10.0, "p99": 20.0, "max": 30.0},
-        nuisance_cycles=nuisance,
-        nuisance_causes={"zone:UNKNOWN": nuisance},
-        progress_share=0.5,
+    causes = {"zone:UNKNOWN": nuisance}
+    return campaign_row(
+        encounter, moving, nuisance=nuisance, causes=causes, share=0.5, route_m=40.0
     )
 
 
