@@ -31,10 +31,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy import stats
 
 from pipeline.errors import EvidenceError
 from pipeline.jsoncodec import jsonable
+
+# scipy.stats is imported in the functions that use it: importing it takes about half a second,
+# which every safecase command (this module is on the CLI's import path) would pay.
 
 __all__ = [
     "MIN_FIT_POINTS",
@@ -115,6 +117,8 @@ class TailFit:
 
     def exceedance(self, latency_s: npt.ArrayLike) -> FloatArray:
         """Per-cycle probability that a cycle takes longer than ``latency_s`` (model tail)."""
+        from scipy import stats
+
         x = np.asarray(latency_s, dtype=np.float64)
         if self.method == "gev":
             per_block = stats.genextreme.sf(x, -self.shape_xi, self.loc, self.scale)
@@ -149,6 +153,8 @@ def _best_fit(
 
 
 def _ad_pvalue(dist: Any, data: FloatArray, gof_mc: int, seed: int, **known: float) -> float:
+    from scipy import stats
+
     if gof_mc <= 0:
         return math.nan
     with np.errstate(all="ignore"):
@@ -202,6 +208,8 @@ def fit_gev_maxima(
     probability ``1 - (1 - p)^B`` is smallest at the smallest B, which takes the fitted
     distribution further into its tail: both err on the safe side.
     """
+    from scipy import stats
+
     maxima = _samples(maxima_s)
     if block_size < 1 or maxima.size < MIN_FIT_POINTS:
         raise EvidenceError(
@@ -242,6 +250,8 @@ def fit_gpd(
     seed: int = 0,
 ) -> TailFit:
     """GPD fit of the excesses over a high quantile and its pWCET [s] per cycle."""
+    from scipy import stats
+
     x = _samples(samples)
     u = float(np.quantile(x, threshold_quantile))
     excess = x[x > u] - u
@@ -289,6 +299,8 @@ class IidChecks:
 
 def iid_checks(samples: npt.ArrayLike) -> IidChecks:
     """Independence and stationarity indicators of ``samples`` (reported, not enforced)."""
+    from scipy import stats
+
     x = _samples(samples)
     if x.size < 4:
         raise EvidenceError(f"iid checks: {x.size} samples; expected at least 4")
