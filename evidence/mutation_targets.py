@@ -16,7 +16,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-__all__ = ["EXCLUDED_TESTS", "LEFT_OUT_KINDS", "TARGETS", "Target", "left_out", "select_tests"]
+__all__ = [
+    "EXCLUDED_TESTS",
+    "LEFT_OUT_FIXTURES",
+    "LEFT_OUT_KINDS",
+    "TARGETS",
+    "Target",
+    "left_out",
+    "select_tests",
+]
 
 TEST_ROOTS: tuple[str, ...] = ("tests", "properties")
 # Test files never selected, with why: they run no code of the module they mention.
@@ -156,6 +164,13 @@ def select_tests(target: Target, root: Path) -> list[str]:
 
 LEFT_OUT_KINDS: frozenset[str] = frozenset({"campaign", "measurement"})
 
+# Fixtures whose tests mutants are not run against, with why.
+LEFT_OUT_FIXTURES: Mapping[str, str] = {
+    "client": "a Dask LocalCluster: its workers are processes of their own that mutmut's "
+    "per-mutant fork does not reach, and a cluster started in a forked child can hang, which "
+    "mutmut would count as a kill (a timeout)",
+}
+
 
 def _marker_kind(decorator: ast.expr) -> str | None:
     """The ``kind=`` of a ``@pytest.mark.requirement(...)`` decorator, else None."""
@@ -172,14 +187,17 @@ def _marker_kind(decorator: ast.expr) -> str | None:
 
 def left_out(tests: Sequence[str], root: Path) -> list[str]:
     """Node IDs (``file::test``) of the tests in ``tests`` that mutants are not run against:
-    those marked ``kind="campaign"`` or ``kind="measurement"`` (long, or timing-dependent)."""
+    those marked ``kind="campaign"`` or ``kind="measurement"`` (long, or timing-dependent) and
+    those asking for a fixture of :data:`LEFT_OUT_FIXTURES`."""
     ids = []
     for name in tests:
         tree = _parsed(root / name)
         for node in tree.body if tree is not None else []:
-            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and any(
-                _marker_kind(d) in LEFT_OUT_KINDS for d in node.decorator_list
-            ):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            kinds = {_marker_kind(d) for d in node.decorator_list}
+            fixtures = {arg.arg for arg in node.args.args}
+            if kinds & LEFT_OUT_KINDS or fixtures & LEFT_OUT_FIXTURES.keys():
                 ids.append(f"{name}::{node.name}")
     return ids
 

@@ -172,18 +172,23 @@ def test_campaigns_and_measurements_are_left_out_of_the_mutant_runs(tmp_path: Pa
         "@pytest.mark.requirement('SR-A-1')\n"
         "def test_inferred(): ...\n"
         "def test_plain(): ...\n"
+        "def test_on_a_cluster(client): ...\n"
+        "def test_with_a_tmp_path(tmp_path): ...\n"
     )
     assert left_out(["tests/test_kinds.py"], tmp_path) == [
         "tests/test_kinds.py::test_long",
         "tests/test_kinds.py::test_timed",
+        "tests/test_kinds.py::test_on_a_cluster",
     ]
     assert digest(Target("tests/test_kinds.py", "safety"), tmp_path, ["tests/test_kinds.py"])[
         "pytest_args"
-    ][-4:] == [
+    ][-6:] == [
         "--deselect",
         "tests/test_kinds.py::test_long",
         "--deselect",
         "tests/test_kinds.py::test_timed",
+        "--deselect",
+        "tests/test_kinds.py::test_on_a_cluster",
     ]
 
 
