@@ -42,7 +42,7 @@ from safety.bodies import (
     tracks_on_map,
 )
 from safety.geometry.envelopes import grown_polygons
-from safety.obstacles import bodies_now
+from safety.obstacles import bodies_now, still_zones
 
 BODIES = ["safety/bodies.py"]
 CONFIG = default_config()
@@ -142,6 +142,32 @@ def test_a_row_seen_this_cycle_is_its_cluster_grown_by_its_largest_position_sigm
     assert _same(out, 0, discs, 0)
     assert _same(out, 2, discs, 2)
     assert hull_bodies(~rows, discs, pred, tracks, clusters, POSE, PS) is discs
+
+
+@pytest.mark.requirement("SR-AVL-6", kind="example", code=["safety/obstacles.py"])
+def test_a_still_object_seen_this_cycle_is_zoned_by_its_cluster_s_hull() -> None:
+    """Predicted zones (safety.obstacles.still_zones) of five tracks: still (footprint) rows
+    updated by cluster 0 and by cluster 1 become that cluster's hull in the tracking frame,
+    grown by K times the track's larger position sigma (0.1 m and 0.3 m); a cone row updated by
+    cluster 0, a still row coasting and one whose detection index is past the clusters keep
+    their reach region grown by the body disc."""
+    points, clusters = _scan()
+    offsets = clusters.hull_offsets
+    assert np.diff(offsets)[0] != np.diff(offsets)[1]  # hulls of different vertex counts
+    xy = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0], [4.0, 0.0]])
+    tracks = _tracks([2, 5, 7, 9, 11], xy, [0, 1, 0, -1, clusters.n], [0.1, 0.3, 0.1, 0.1, 0.1])
+    pred = _predictions([2, 5, 7, 9, 11], [FOOTPRINT, FOOTPRINT, CONE, FOOTPRINT, FOOTPRINT])
+    zones = still_zones(pred, tracks, clusters, POSE, PS)
+    discs = grown_polygons(pred.reach_xy_m, pred.body_radius_m, SIDES)
+    assert zones.n == 5
+    for j, k, sigma in ((0, 0, 0.1), (1, 1, 0.3)):
+        hull = slice(int(offsets[k]), int(offsets[k + 1]))
+        hx, hy = to_parent(POSE, clusters.hull_x_m[hull], clusters.hull_y_m[hull])
+        want = grown_polygons(np.stack([hx, hy], axis=1)[None], np.array([K * sigma]), SIDES)
+        assert _same(zones, j, want, 0), j
+        _holds(_polygon(zones, j), _returns(points, clusters, k, POSE), K * sigma)
+    for j in (2, 3, 4):
+        assert _same(zones, j, discs, j), j
 
 
 @pytest.mark.requirement("SR-AVL-8", kind="example", code=BODIES)

@@ -80,7 +80,8 @@ def test_the_object_speed_check_stops_only_past_the_domain_s_bound() -> None:
 def test_the_object_speed_check_reads_the_velocity_sigma_of_confirmed_tracks() -> None:
     """The velocity block of the covariance is what the speed is lowered by (a large position
     sigma changes nothing; a large velocity sigma keeps a fast track inside); a tentative or
-    lost track is not checked; a track on the map is not either."""
+    lost track is not checked; a track on the map is not either, and a slow one off the map
+    stays inside."""
     fast = 0.5 + PS.max_object_speed_mps
     assert faster_than_the_domain(_moving([(fast, 0.0)], 0.1, sigma_p=5.0), PS) is not None
     assert faster_than_the_domain(_moving([(fast, 0.0)], 1.0, sigma_p=0.01), PS) is None
@@ -89,6 +90,8 @@ def test_the_object_speed_check_reads_the_velocity_sigma_of_confirmed_tracks() -
         assert faster_than_the_domain(one, PS) is None, status
     two = _moving([(fast, 0.0), (0.0, fast)], 0.1)
     assert faster_than_the_domain(two, PS, np.array([True, True])) is None
+    slow = _moving([(0.1, 0.0), (0.0, -0.2)], 0.1)
+    assert faster_than_the_domain(slow, PS, np.array([False, False])) is None
     verdict = faster_than_the_domain(two, PS, np.array([True, False]))
     assert verdict is not None
     assert "track 4 " in verdict.reason
