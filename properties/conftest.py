@@ -26,6 +26,8 @@ def _waits(item: pytest.Item) -> int:
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if hasattr(config, "workerinput"):
+        return  # under pytest-xdist nothing is started beside the suite (below): no waiting
     # The tests that wait for a worker run last, when it has had the rest of the suite.
     items.sort(key=_waits)
 
