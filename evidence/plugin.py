@@ -239,7 +239,8 @@ def pytest_runtest_protocol(item: pytest.Item) -> Generator[None, Any, None]:
     finally:
         record = recorder.end()
         state = item.config.stash.get(STATE, None)
-        if state is not None:
+        # an xdist worker built the item with the teardown report (pytest_runtest_makereport)
+        if state is not None and worker_id(item.config) is None:
             state.items[item.nodeid] = build_item(
                 item,
                 state.reports.get(item.nodeid, {}),
@@ -276,18 +277,15 @@ def pytest_runtest_makereport(
     state.reports.setdefault(item.nodeid, {})[report.when] = report
     if report.when == "teardown" and worker_id(item.config) is not None:
         # The teardown report is a test's last: it carries the evidence to the controller.
-        attach(
-            report,
-            build_item(
-                item,
-                state.reports[item.nodeid],
-                current().peek(),
-                state.benchmarks.get(item.nodeid),
-                state.stats.get(item.nodeid),
-            ),
-            current().session_provenance,
-            state.n_deselected,
+        built = build_item(
+            item,
+            state.reports[item.nodeid],
+            current().peek(),
+            state.benchmarks.get(item.nodeid),
+            state.stats.get(item.nodeid),
         )
+        state.items[item.nodeid] = built
+        attach(report, built, current().session_provenance, state.n_deselected)
     if report.when == "call":
         # funcargs are cleared at teardown, so read the benchmark's statistics now.
         bench = benchmark_detail(item)
