@@ -117,9 +117,19 @@ class StaticMap:
         # A part through a cell's corner is at exactly sqrt(2) h / 2 from its centre; the slack
         # keeps that tie on the occupied side whatever the rounding of the distance.
         reach = math.sqrt(0.5) * h * (1.0 + 1e-12)
+        # Only cells whose centre lies in some part's bounding box grown by the reach (and a
+        # cell more, against rounding) can be near it; the rest of the grid is aisle.
+        candidate = np.zeros((rows, cols), dtype=bool)
+        for part in parts:
+            lo = (part.min(axis=0) - reach - h - (x0, y0)) / h
+            hi = (part.max(axis=0) + reach + h - (x0, y0)) / h
+            c0, r0 = (max(0, math.floor(v)) for v in lo)
+            c1, r1 = math.ceil(hi[0]) + 1, math.ceil(hi[1]) + 1
+            candidate[r0:r1, c0:c1] = True
+        r, c = np.nonzero(candidate)
         shapely.prepare(union)
-        near = shapely.dwithin(union, shapely.points(gx.ravel(), gy.ravel()), reach)
-        near = np.asarray(near).reshape(rows, cols)
+        near = np.zeros((rows, cols), dtype=bool)
+        near[r, c] = shapely.dwithin(union, shapely.points(gx[r, c], gy[r, c]), reach)
         return cls.from_grid(near, h, (x0, y0), tolerance_m, source)
 
     @classmethod
