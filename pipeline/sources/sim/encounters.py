@@ -6,8 +6,13 @@ placement that brings it near the robot's route: along the aisle or road (same o
 direction, any of the motion profiles, including the forklift reversal), or across it through
 a cross aisle, timed to meet a robot driving at a nominal 1 m/s. Every candidate is checked
 over the whole run (every 0.05 s) before it is accepted: it must keep ``CLEARANCE_M`` from
-the static structure and from the objects already placed, and must not start on the robot;
-otherwise it is redrawn (at most ``ATTEMPTS`` times per object). Everything comes from the
+the static structure and from the objects already placed, must start at least
+``START_GAP_M`` from the robot, and must leave the robot room to stop (SR-SIM-9): a
+:class:`BrakingRobot` that drives on for its reaction time and then brakes at its weakest
+deceleration keeps ``CLEARANCE_M`` from the candidate until it stands. A start that fails the
+last check is one no controller that can only brake could survive (an object driving into
+the robot faster than it can stop), so it says nothing about a safety layer. A rejected
+candidate is redrawn (at most ``ATTEMPTS`` times per object). Everything comes from the
 generator given, so a seed reproduces the encounter bit for bit.
 """
 
@@ -15,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,10 +35,12 @@ from pipeline.sources.sim.objects import (
 )
 from pipeline.sources.sim.shapes import Outline, outline_distances, pose_points, rectangle
 from pipeline.sources.sim.world import SimObject, Structure, World, structure_clearance
+from pipeline.types import FloatArray
 
-__all__ = ["ATTEMPTS", "CLEARANCE_M", "random_encounter"]
+__all__ = ["ATTEMPTS", "CLEARANCE_M", "START_GAP_M", "BrakingRobot", "random_encounter"]
 
 CLEARANCE_M = 0.1
+START_GAP_M = 1.0
 ATTEMPTS = 40
 _CHECK_DT_S = 0.05
 _WAREHOUSE_KINDS = (
@@ -53,6 +61,57 @@ _APRON_KINDS = (
     ObjectKind.ULD_CONTAINER,
     ObjectKind.CART,
 )
+
+
+@dataclass(frozen=True)
+class BrakingRobot:
+    """The robot a random encounter must leave room to stop (SR-SIM-9): a ``length_m`` x
+    ``width_m`` footprint [m] starting at ``speed_mps`` along the route, driving on for
+    ``reaction_s`` [s] and then braking at ``decel_mps2`` [m/s^2] until it stands.
+
+    The defaults are the simulator's defaults at their least favourable: ``sim.ego_speed_mps``
+    (1 m/s), the weakest braking a run draws (``sim.ego_decel_min_mps2``, 1.25 m/s^2), and
+    the earliest a controller's brake can act: the first scan's end (0.1 s at 10 Hz) plus
+    ``sim.actuation_latency_s`` (0.05 s) plus one simulation step (0.01 s), since a command
+    acts from the first step that starts at or after it is due.
+    """
+
+    speed_mps: float = 1.0
+    decel_mps2: float = 1.25
+    reaction_s: float = 0.16
+    length_m: float = 0.9
+    width_m: float = 0.6
+
+    def __post_init__(self) -> None:
+        if not (self.speed_mps >= 0.0 and self.decel_mps2 > 0.0 and self.reaction_s >= 0.0):
+            raise ValueError(
+                f"BrakingRobot: need speed >= 0, deceleration > 0 and reaction >= 0; got "
+                f"{self.speed_mps}, {self.decel_mps2}, {self.reaction_s}"
+            )
+        if not (self.length_m > 0.0 and self.width_m > 0.0):
+            raise ValueError(f"BrakingRobot: size {self.length_m} x {self.width_m} must be > 0")
+
+    @property
+    def stop_s(self) -> float:
+        """When the robot stands [s] (at once when it starts standing)."""
+        if self.speed_mps == 0.0:
+            return 0.0
+        return self.reaction_s + self.speed_mps / self.decel_mps2
+
+    def arc_m(self, t_s: FloatArray) -> FloatArray:
+        """Distance along the route [m] driven by each time ``t_s`` [s]."""
+        t = np.asarray(t_s, dtype=np.float64)
+        braking = np.clip(t - self.reaction_s, 0.0, max(self.stop_s - self.reaction_s, 0.0))
+        coast = self.speed_mps * np.minimum(t, self.reaction_s)
+        arc: FloatArray = coast + braking * (self.speed_mps - 0.5 * self.decel_mps2 * braking)
+        return arc
+
+    def footprints(self, route: Route, times_s: FloatArray) -> tuple[Outline, FloatArray]:
+        """The footprint and its posed vertices ``(T, 4, 2)`` at ``times_s`` on ``route``."""
+        hl, hw = self.length_m / 2, self.width_m / 2
+        fp = Outline.from_parts([rectangle(-hl, hl, -hw, hw)])
+        pose = route.pose_at(self.arc_m(times_s))
+        return fp, pose_points(fp.vertices_m, pose[:, 0], pose[:, 1], pose[:, 2])
 
 
 def _motion_for(kind: ObjectKind, rng: np.random.Generator) -> mo.Motion:
@@ -168,19 +227,26 @@ def _fits(
     placed: list[SimObject],
     structure: Structure,
     bounds: tuple[float, float, float, float],
-    ego_start: tuple[Outline, np.ndarray],
+    braking: tuple[Outline, FloatArray],
     times: np.ndarray,
 ) -> bool:
-    """Whether ``candidate`` keeps its clearances over ``times`` (module docstring)."""
+    """Whether ``candidate`` keeps its clearances over ``times`` (module docstring);
+    ``braking`` is the braking robot's footprint and its vertices at ``times[:k]``, the check
+    times while it still moves (at least the start)."""
     probe = World("probe", structure, tuple(candidate), bounds)
     if (structure_clearance(probe, times, margin_m=2 * CLEARANCE_M) < CLEARANCE_M).any():
         return False
     cand_verts = probe.object_vertices(times)
-    fp, fp_verts = ego_start
-    d0 = outline_distances(
-        fp_verts, fp, cand_verts[0], probe.dynamic_outline, probe.part_owner, len(candidate)
+    fp, fp_verts = braking
+    d = outline_distances(
+        fp_verts,
+        fp,
+        cand_verts[: len(fp_verts)],
+        probe.dynamic_outline,
+        probe.part_owner,
+        len(candidate),
     )
-    if (d0 < 1.0).any():
+    if (d[0] < START_GAP_M).any() or (d < CLEARANCE_M).any():
         return False
     if not placed:
         return True
@@ -201,8 +267,12 @@ def _fits(
     return True
 
 
-def random_encounter(rng: np.random.Generator, duration_s: float) -> tuple[World, Route]:
-    """A random encounter world and the robot's route (module docstring)."""
+def random_encounter(
+    rng: np.random.Generator, duration_s: float, robot: BrakingRobot | None = None
+) -> tuple[World, Route]:
+    """A random encounter world and the robot's route (module docstring); ``robot`` is the
+    robot it must leave room to stop (default :class:`BrakingRobot`'s defaults)."""
+    robot = BrakingRobot() if robot is None else robot
     apron = bool(rng.random() < 0.35)
     if apron:
         layout = apron_stand()
@@ -252,10 +322,8 @@ def random_encounter(rng: np.random.Generator, duration_s: float) -> tuple[World
             )
 
     times = np.arange(0.0, duration_s + 1e-9, _CHECK_DT_S)
-    hl = 0.45  # nominal robot half-length for the start check
-    fp = Outline.from_parts([rectangle(-hl, hl, -0.3, 0.3)])
-    start = route.pose_at(np.array([0.0]))
-    ego_start = (fp, pose_points(fp.vertices_m, start[:, 0], start[:, 1], start[:, 2])[0])
+    moving = max(1, int(np.count_nonzero(times < robot.stop_s)))
+    braking = robot.footprints(route, times[:moving])
     placed: list[SimObject] = []
     n_wanted = int(rng.integers(1, 5))
     next_id = 1
@@ -263,7 +331,7 @@ def random_encounter(rng: np.random.Generator, duration_s: float) -> tuple[World
         kind = kinds[int(rng.integers(0, len(kinds)))]
         for _attempt in range(ATTEMPTS):
             cand = _candidate(kind, rng, next_id, duration_s, lane, crossing)
-            if _fits(cand, placed, structure, bounds, ego_start, times):
+            if _fits(cand, placed, structure, bounds, braking, times):
                 placed.extend(cand)
                 next_id += len(cand)
                 break
