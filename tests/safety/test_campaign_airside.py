@@ -27,7 +27,7 @@ from safety.campaign_stats import availability_table, bound_table
 
 CODE = ["safety/campaign_plan.py", "safety/campaign.py"]
 SENSORS = overridden(default_config(), {"runtime": {"sim_sensors": ["thermal", "radar"]}})
-C10K = Path(__file__).parents[2] / "docs/findings/data/c10k.jsonl.gz"
+C10K = Path(__file__).parents[2] / "docs/findings/data/c10k-e938d19.jsonl.gz"
 
 
 def _row(encounter: Encounter, *, nuisance: int = 4, moving: tuple[float, ...] = ()) -> CampaignRow:
