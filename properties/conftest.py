@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import pytest
 
+from evidence.plugin_xdist import worker_id
 from evidence.profiles import active_profile, certifying
 from pipeline.config import load_config
 from properties import ahead, beside
@@ -26,14 +27,14 @@ def _waits(item: pytest.Item) -> int:
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    if hasattr(config, "workerinput"):
+    if worker_id(config) is not None:
         return  # under pytest-xdist nothing is started beside the suite (below): no waiting
     # The tests that wait for a worker run last, when it has had the rest of the suite.
     items.sort(key=_waits)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
-    if hasattr(session.config, "workerinput"):
+    if worker_id(session.config) is not None:
         # Under pytest-xdist every worker collects the whole suite but runs only its share, and
         # the workers already use the cores: each waiting test runs its body where it lands.
         return

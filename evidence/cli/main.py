@@ -11,27 +11,37 @@ import os
 import sys
 from importlib import metadata
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import typer
 from rich.table import Table
 from rich.text import Text
 
 from evidence.catalogue import load_catalogue
-from evidence.cli.audit import app as audit_app
-from evidence.cli.campaign import campaign_command
 from evidence.cli.common import ConfigOption, err, fail, load_config_or_exit, out, stamp
-from evidence.cli.mcap import app as mcap_app
-from evidence.cli.nav2 import app as nav2_app
-from evidence.cli.run import run_command
-from evidence.cli.sim import app as sim_app
-from evidence.cli.train import train_command
+from evidence.cli.lazy import LazyGroup
 from evidence.manifest import check_key_outside, verify_bundle
 from pipeline.config import config_hash, to_toml
 from pipeline.errors import SafecaseError
 from safety.audit.keys import default_key_path, load_or_create_key, load_public_key
 
+
+class _Commands(LazyGroup):
+    """The subcommands with modules of their own, imported when called (evidence.cli.lazy)."""
+
+    lazy: ClassVar[dict[str, tuple[str, str]]] = {
+        "sim": ("evidence.cli.sim", "app"),
+        "audit": ("evidence.cli.audit", "app"),
+        "nav2": ("evidence.cli.nav2", "app"),
+        "mcap": ("evidence.cli.mcap", "app"),
+        "train": ("evidence.cli.train", "train_command"),
+        "run": ("evidence.cli.run", "run_command"),
+        "campaign": ("evidence.cli.campaign", "campaign_command"),
+    }
+
+
 app = typer.Typer(
+    cls=_Commands,
     name="safecase",
     help="Formal-safety verification and certification harness for AMR obstacle perception.",
     no_args_is_help=True,
@@ -42,13 +52,6 @@ evidence_app = typer.Typer(help="Inspect and verify evidence bundles.", no_args_
 config_app = typer.Typer(help="Show and check configurations.", no_args_is_help=True)
 app.add_typer(evidence_app, name="evidence")
 app.add_typer(config_app, name="config")
-app.add_typer(sim_app, name="sim")
-app.add_typer(audit_app, name="audit")
-app.add_typer(nav2_app, name="nav2")
-app.add_typer(mcap_app, name="mcap")
-app.command("train")(train_command)
-app.command("run")(run_command)
-app.command("campaign")(campaign_command)
 
 PROFILES = ("dev", "ci", "certify", "certify-full")
 

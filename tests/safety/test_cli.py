@@ -190,3 +190,35 @@ def test_every_command_help_has_an_example_and_its_exit_codes(command: tuple[str
     assert "Example" in text, text[:300]
     assert "Exit codes" in text, text[:300]
     assert f"safecase {' '.join(command)}" in text, text[:300]
+
+
+# Modules only `run`, `campaign` and `train` need; a light command must not import them.
+HEAVY = ("pipeline.perception", "safety.runtime", "scipy.optimize")
+
+
+def test_a_command_imports_only_what_it_runs() -> None:
+    """`safecase config check` and `--version` import no runtime, simulator or scipy; `run`'s
+    help does (its module is imported when the command is looked up)."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys\n"
+        "from typer.testing import CliRunner\n"
+        "from evidence.cli.main import app\n"
+        "r = CliRunner().invoke(app, sys.argv[1:])\n"
+        "assert r.exit_code == 0, r.output\n"
+        f"print(sorted(m for m in {HEAVY!r} if m in sys.modules))\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+
+    def imported(*args: str) -> str:
+        done = subprocess.run(
+            [sys.executable, "-c", probe, *args], capture_output=True, text=True, cwd=root
+        )
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    assert imported("config", "check", "examples/source-warehouse.toml") == "[]"
+    assert imported("--version") == "[]"
+    assert imported("run", "--help") == str(sorted(HEAVY))
