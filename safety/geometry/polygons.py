@@ -58,6 +58,7 @@ MAX_COORD_M = 1.0e6
 # rounding slack usefully; such a polygon with points within rounding of its boundary is
 # rejected rather than given a meaningless slack.
 _MIN_SIN_HALF = 1.0e-9
+_PREVIOUS_OF_4 = np.array([3, 0, 1, 2])  # the entry before each of four, cyclically
 
 
 class Workspace:
@@ -120,11 +121,11 @@ def _initial_vertices(xs: FloatArray, ys: FloatArray) -> tuple[IntArray, IntArra
     bottom = np.where(ys == ymin, xs, -np.inf).argmax(axis=1)
     right = np.where(xs == xmax, ys, -np.inf).argmax(axis=1)
     top = np.where(ys == ymax, xs, np.inf).argmin(axis=1)
-    cand = np.stack([left, bottom, right, top], axis=1)
+    cand = np.empty((n_sets, 4), dtype=left.dtype)
+    cand[:, 0], cand[:, 1], cand[:, 2], cand[:, 3] = left, bottom, right, top
     rows = np.arange(n_sets)[:, None]
     cx, cy = xs[rows, cand], ys[rows, cand]
-    prev = np.roll(np.arange(4), 1)
-    dup = (cx == cx[:, prev]) & (cy == cy[:, prev])
+    dup = (cx == cx[:, _PREVIOUS_OF_4]) & (cy == cy[:, _PREVIOUS_OF_4])
     dup[:, 0] = False  # the first entry (lowest x) always stays
     keep = ~dup
     # A later entry may equal the first one after wrapping round (e.g. top == left).
@@ -187,7 +188,7 @@ def convex_hull_batch(
     near_idx: list[IntArray] = []
     while True:
         rows = order.shape[1]
-        nxt = np.roll(order, -1, axis=1)
+        nxt = np.concatenate((order[:, 1:], order[:, :1]), axis=1)
         ux, uy = xs[sets, order], ys[sets, order]
         ex, ey = xs[sets, nxt] - ux, ys[sets, nxt] - uy
         limit = HULL_TAU * np.sqrt(ex * ex + ey * ey) * magnitude[:, None]
@@ -210,7 +211,7 @@ def convex_hull_batch(
         if not outside.any():
             break
         farthest = cross.argmin(axis=2)
-        deepest = np.take_along_axis(cross, farthest[:, :, None], axis=2)[:, :, 0]
+        deepest = cross.min(axis=2)  # the value at `farthest`
         insert = deepest < -limit
         # Each edge with an outside point gets its farthest point inserted right after u.
         k = np.arange(rows)[None, :]
@@ -227,8 +228,8 @@ def convex_hull_batch(
         alive[r, farthest[r, c]] = False
         keep = int(alive.sum(axis=1).max())
         pick = np.argsort(~alive, axis=1, kind="stable")[:, :keep]
-        valid = np.take_along_axis(alive, pick, axis=1)
-        index = np.where(valid, np.take_along_axis(index, pick, axis=1), order[:, :1])
+        valid = alive[sets, pick]
+        index = np.where(valid, index[sets, pick], order[:, :1])
         wx, wy = xs[sets, index], ys[sets, index]
     flat = counts < 3
     if flat.any():
