@@ -2,9 +2,23 @@
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
-from safety.nav2.geometry import Footprint, axis_depth_m, clearance_sq_m2, contains_footprint
+import pytest
+import shapely
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from evidence.profiles import examples
+from evidence.record import current
+from safety.nav2.geometry import (
+    Footprint,
+    Vertex,
+    axis_depth_m,
+    clearance_sq_m2,
+    contains_footprint,
+)
 
 F = Fraction
 # 0.3 m x 0.3 m: leading edge 0.15 m ahead of the origin, 0.15 m to each side.
@@ -75,3 +89,91 @@ def test_clearance_all_round_is_the_distance_to_the_boundary() -> None:
     assert clearance_sq_m2(cut, ROBOT) == (F("0.3") ** 2) / 2
     # The tutorial's box does not hold the robot: no clearance at all.
     assert clearance_sq_m2(_box("0", "0.4", "-0.3", "0.3"), ROBOT) == 0
+
+
+# A footprint and zones on a 1/64 m grid: binary fractions, so GEOS reads every coordinate
+# exactly and decides touching (an edge along the footprint's side, a vertex on its corner)
+# as exact arithmetic does. 0.3125 m x 0.25 m: half-sizes 10/64 and 8/64 m.
+GRID = 64
+ON_GRID = Footprint(F(20, GRID), F(16, GRID))
+HX, HY = F(10, GRID), F(8, GRID)
+
+
+@st.composite
+def _zones(draw: st.DrawFn) -> list[Vertex]:
+    """Star polygons (one vertex per equal sector) or boxes, anywhere within 1.5 m of the
+    robot: holding it, cutting it, beside it or far from it, some touching its sides."""
+    if draw(st.booleans()):
+        # Box sides on or near the footprint's own lines (+-10 and +-8 grid steps).
+        near = st.integers(-24, 24)
+        x0, x1 = sorted(draw(st.lists(near, min_size=2, max_size=2, unique=True)))
+        y0, y1 = sorted(draw(st.lists(near, min_size=2, max_size=2, unique=True)))
+        return _box(*(str(F(v, GRID)) for v in (x0, x1, y0, y1)))
+    n = draw(st.integers(3, 8))
+    cx, cy = (F(draw(st.integers(-96, 96)), GRID) for _ in range(2))
+    sector = 360 // n
+    points = []
+    for k in range(n):
+        r = draw(st.integers(4, 80))
+        a = math.radians(k * sector + draw(st.integers(0, sector - 1)))
+        points.append((cx + F(round(r * math.cos(a)), GRID), cy + F(round(r * math.sin(a)), GRID)))
+    return points
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="cross-check", code=["safety/nav2/geometry.py"])
+@settings(max_examples=examples(300), deadline=None)
+@given(zone=_zones())
+def test_holding_the_footprint_and_the_clearance_agree_with_geos(zone: list[Vertex]) -> None:
+    """contains_footprint is GEOS's ``covers`` (the boundary may touch), and the clearance is
+    the squared distance from the footprint to the zone's boundary, on zones anywhere."""
+    polygon = shapely.Polygon([(float(x), float(y)) for x, y in zone])
+    assume(polygon.is_valid and polygon.area > 0)
+    robot = shapely.box(-float(HX), -float(HY), float(HX), float(HY))
+    holds = contains_footprint(zone, ON_GRID)
+    assert holds == polygon.covers(robot)
+    clearance = clearance_sq_m2(zone, ON_GRID)
+    reference = polygon.exterior.distance(robot) ** 2 if holds else 0.0
+    assert math.isclose(float(clearance), reference, rel_tol=1e-12, abs_tol=1e-15)
+    rec = current()
+    rec.count("zones", "hold the footprint" if holds else "do not hold it")
+    if not holds and polygon.disjoint(robot):
+        rec.count("zones", "apart from the footprint")
+    if holds and clearance == 0:
+        rec.count("zones", "hold it touching")
+
+
+def test_a_zone_just_too_small_or_touching_the_footprint() -> None:
+    """Edges along the footprint's sides and a vertex on its corner still hold it; a zone
+    short of it by one grid step in length or in width does not."""
+    exact = _box(*(str(v) for v in (-HX, HX, -HY, HY)))
+    assert contains_footprint(exact, ON_GRID)
+    assert clearance_sq_m2(exact, ON_GRID) == 0
+    step = F(1, GRID)
+    assert not contains_footprint(_box(*(str(v) for v in (-HX + step, HX, -HY, HY))), ON_GRID)
+    assert not contains_footprint(_box(*(str(v) for v in (-HX, HX, -HY, HY - step))), ON_GRID)
+    # A diamond whose edge x + y = HX + HY passes through the corner (HX, HY).
+    reach = HX + HY
+    diamond = [(reach, F(0)), (F(0), reach), (-reach, F(0)), (F(0), -reach)]
+    assert contains_footprint(diamond, ON_GRID)
+    # A zone entirely to the left of the robot, its slanted edges spanning the robot's y = 0.
+    left = [(F(-1), F(-1)), (F(-1, 2), F(0)), (F(-1), F(1)), (F(-3, 2), F(0))]
+    assert not contains_footprint(left, ON_GRID)
+    # A tall zone to the right of the robot: the ray along +x crosses both of its slanted
+    # edges, so it does not hold the origin (an even count), however steep the edges.
+    right = [(F(1), F(-2)), (F(2), F(-2)), (F(1), F(2)), (F(1, 2), F(2))]
+    assert not contains_footprint(right, ON_GRID)
+    # A notch pointing at the robot's front from 0.3 m: the notch's edges, extended, would
+    # cut the footprint; the edges themselves stop short of it.
+    notched = [
+        (F(1), F(-1)),
+        (F(1), F(-1, 2)),
+        (F(3, 10), F(0)),
+        (F(1), F(1, 2)),
+        (F(1), F(1)),
+        (F(-1), F(1)),
+        (F(-1), F(-1)),
+    ]
+    assert contains_footprint(notched, ON_GRID)
+    # A repeated vertex (a zero-length edge) is read as the point it is.
+    square = _box("-0.5", "0.5", "-0.5", "0.5")
+    assert clearance_sq_m2([square[0], *square], ROBOT) == F("0.35") ** 2
