@@ -52,6 +52,12 @@ class Footprint:
     length_m: Fraction
     width_m: Fraction
 
+    def __post_init__(self) -> None:
+        if not (self.length_m > 0 and self.width_m > 0):
+            raise ValueError(
+                f"footprint {self.length_m} m x {self.width_m} m: both sides must be > 0"
+            )
+
     def ahead(self) -> tuple[Fraction, Fraction]:
         """(distance from the origin to the leading edge, half-width) [m], either way along x."""
         return self.length_m / 2, self.width_m / 2
@@ -140,7 +146,8 @@ def axis_depth_m(vertices: Sequence[Vertex], footprint: Footprint, direction: st
             return Fraction(0)
         slab = min(_x_at(bound, low), _x_at(bound, high)) - front
         depth = slab if depth is None else min(depth, slab)
-    return max(depth if depth is not None else Fraction(0), Fraction(0))
+    assert depth is not None  # a footprint's width is > 0: [-half, half] is one slab at least
+    return max(depth, Fraction(0))
 
 
 def _inside(vertices: Sequence[Vertex], point: Vertex) -> bool:

@@ -177,3 +177,98 @@ def test_a_zone_just_too_small_or_touching_the_footprint() -> None:
     # A repeated vertex (a zero-length edge) is read as the point it is.
     square = _box("-0.5", "0.5", "-0.5", "0.5")
     assert clearance_sq_m2([square[0], *square], ROBOT) == F("0.35") ** 2
+
+
+def test_depth_needs_the_crossings_of_the_front_and_of_the_edges() -> None:
+    """A slanted slot cut from the far side: along y in (-0.12, -0.10) the front lies in the
+    slot, so the depth is 0, though the front lies inside the zone at the middle and at both
+    sides of the robot. A zone whose near edge is the front line itself covers it."""
+    slot = [
+        (F(-1), F("-0.3")),
+        (F(1), F("-0.3")),
+        (F(1), F("0.3")),
+        (F(-1, 20), F("0.3")),
+        (F(9, 40), F(-1, 4)),
+        (F(43, 200), F(-1, 4)),
+        (F(-3, 50), F("0.3")),
+        (F(-1), F("0.3")),
+    ]
+    assert axis_depth_m(slot, ROBOT, "forward") == 0
+    assert axis_depth_m(_box("0.15", "1", "-0.3", "0.3"), ROBOT, "forward") == F("0.85")
+
+
+def _sampled_depth(zone: list[Vertex], samples: int) -> Fraction:
+    """The stretch holding the front, even-odd, at ``samples + 1`` offsets across the robot
+    (exact arithmetic, offsets nudged off the grid's vertex heights): its least value."""
+    front, half = ROBOT.ahead()
+    edges = list(zip(zone, [*zone[1:], zone[0]], strict=True))
+    least = None
+    for k in range(samples + 1):
+        s = min(-half + 2 * half * F(k, samples) + F(1, 10**7), half - F(1, 10**7))
+        xs = sorted(
+            x0 + (s - y0) * (x1 - x0) / (y1 - y0)
+            for (x0, y0), (x1, y1) in edges
+            if min(y0, y1) < s < max(y0, y1)
+        )
+        stretch = F(0)
+        for x_in, x_out in zip(xs[0::2], xs[1::2], strict=True):
+            if x_in <= front <= x_out:
+                stretch = x_out - front
+        least = stretch if least is None else min(least, stretch)
+    assert least is not None
+    return least
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="property", code=["safety/nav2/geometry.py"])
+@settings(max_examples=examples(60), deadline=None)
+@given(
+    zone=st.lists(st.tuples(st.integers(-20, 20), st.integers(-8, 8)), min_size=3, max_size=7).map(
+        lambda points: [(F(x, 20), F(y, 20)) for x, y in points]
+    )
+)
+def test_depth_of_any_ring_self_crossing_or_not_is_the_least_stretch(zone: list[Vertex]) -> None:
+    """Rings with crossing edges are read even-odd, as Nav2 reads them (GEOS refuses them):
+    the depth is at most the stretch at every sampled offset, and within a sample step of
+    the least of them (edges on the 1/20 m grid are at most 40 times as long as tall)."""
+    depth = axis_depth_m(zone, ROBOT, "forward")
+    sampled = _sampled_depth(zone, 300)
+    assert depth <= sampled
+    assert sampled - depth <= 40 * F(3, 10) / 300
+    current().count("rings", "some depth" if depth > 0 else "no depth")
+
+
+def test_a_ring_whose_edges_cross_in_front_of_the_robot() -> None:
+    ring = [(F(9, 10), F(0)), (F(-1, 20), F(1, 5)), (F(-7, 10), F(-2, 5)), (F(4, 5), F(-1, 5))]
+    ring.append((F(-1, 20), F(2, 5)))
+    # Found by search: without the crossing of its edges the depth would read 37/240 m.
+    assert axis_depth_m(ring, ROBOT, "forward") == F(3, 80)
+
+
+def test_clearance_reaches_a_vertex_pointing_at_the_robot_and_every_corner() -> None:
+    notched = [
+        (F(1), F(-1)),
+        (F(1), F(-1, 2)),
+        (F(3, 10), F(0)),
+        (F(1), F(1, 2)),
+        (F(1), F(1)),
+        (F(-1), F(1)),
+        (F(-1), F(-1)),
+    ]
+    # The notch's tip 0.3 m ahead of the origin, 0.15 m from the robot's front.
+    assert clearance_sq_m2(notched, ROBOT) == F("0.15") ** 2
+    # A cut at the rear left: its nearest point is the corner (-0.15, -0.15).
+    cut = [
+        (F("-0.5"), F("0.5")),
+        (F("-0.5"), F("-0.1")),
+        (F("-0.1"), F("-0.5")),
+        (F("0.5"), F("-0.5")),
+        (F("0.5"), F("0.5")),
+    ]
+    assert clearance_sq_m2(cut, ROBOT) == (F("0.3") ** 2) / 2
+
+
+def test_a_direction_or_footprint_that_does_not_exist_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"^direction = 'sideways': allowed: forward \| reverse$"):
+        axis_depth_m(_box("0", "1", "-1", "1"), ROBOT, "sideways")
+    with pytest.raises(ValueError, match="both sides must be > 0"):
+        Footprint(F("0.3"), F(0))
