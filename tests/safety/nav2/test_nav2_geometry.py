@@ -15,9 +15,11 @@ from evidence.record import current
 from safety.nav2.geometry import (
     Footprint,
     Vertex,
+    _intersection_y,
     axis_depth_m,
     clearance_sq_m2,
     contains_footprint,
+    rotate_to,
 )
 
 F = Fraction
@@ -270,5 +272,35 @@ def test_clearance_reaches_a_vertex_pointing_at_the_robot_and_every_corner() -> 
 def test_a_direction_or_footprint_that_does_not_exist_is_refused() -> None:
     with pytest.raises(ValueError, match=r"^direction = 'sideways': allowed: forward \| reverse$"):
         axis_depth_m(_box("0", "1", "-1", "1"), ROBOT, "sideways")
-    with pytest.raises(ValueError, match="both sides must be > 0"):
-        Footprint(F("0.3"), F(0))
+    for length, width in ((F("0.3"), F(0)), (F(0), F("0.3"))):
+        with pytest.raises(ValueError, match="both sides must be > 0"):
+            Footprint(length, width)
+    # Reverse travel turns the zone a half turn (not a mirror image).
+    assert rotate_to("reverse", [(F(1), F(2))]) == [(F(-1), F(-2))]
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "c", "d"),
+    [
+        ((0.1, 0.7), (0.9, -0.5), (1.3, 0.4), (-0.2, -0.35)),
+        ((-0.4, -0.1), (0.6, 0.45), (0.5, -0.6), (-0.1, 0.8)),
+        ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.6, 0.4)),  # c-d ends on a-b: crossing at d
+        ((0.0, 0.0), (1.0, 1.0), (2.0, 0.0), (1.5, 1.0)),  # the lines cross beyond both ends
+        ((0.1, 0.2), (1.1, 1.2), (1.2, 0.1), (0.9, 0.4)),  # within a-b, beyond c-d's end
+        ((1.2, 0.1), (0.9, 0.4), (0.1, 0.2), (1.1, 1.2)),  # the same, the other way round
+        ((1.0, -0.7), (-0.5, 1.0), (-0.1, -0.7), (0.0, 0.6)),  # crossing near c-d's end
+        ((0.0, 0.0), (1.0, 1.0), (0.0, 0.5), (1.0, 1.5)),  # parallel
+    ],
+)
+def test_where_two_edges_cross_against_geos(
+    a: tuple[float, float], b: tuple[float, float], c: tuple[float, float], d: tuple[float, float]
+) -> None:
+    """The height at which two edges of a ring cross (a breakpoint of the depth), or None."""
+    exact = [(F(repr(x)), F(repr(y))) for x, y in (a, b, c, d)]
+    found = _intersection_y(*exact)
+    meet = shapely.LineString([a, b]).intersection(shapely.LineString([c, d]))
+    if meet.is_empty:
+        assert found is None
+    else:
+        assert found is not None
+        assert math.isclose(float(found), meet.y, abs_tol=1e-12)
