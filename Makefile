@@ -31,6 +31,8 @@ help:
 	@echo "make mutation  mutation-test safety/ and the per-cycle stages, results in safety/mutation/"
 	@echo "make acoustic-oracle  build pyroomacoustics into .venv (the DOA oracle; a C++ compiler)"
 
+# The wheels install with --no-compile: Python compiles what is imported on first import, and
+# byte-compiling every module of every wheel up front took half the install (56 of 106 CPU s).
 $(STAMP): requirements.lock pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if (3, 10) <= sys.version_info[:2] <= (3, 12) else \
 	  "safecase needs Python 3.10, 3.11 or 3.12; found " + sys.version.split()[0] + " at $(PYTHON)")'
@@ -38,7 +40,7 @@ $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check \
 	  $$(grep -E '^(pip|setuptools|wheel)==' requirements.lock)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps \
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps --no-compile \
 	  -r requirements.lock
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps \
 	  --no-build-isolation -e .
