@@ -25,6 +25,24 @@ from safety.nav2.geometry import (
 F = Fraction
 # 0.3 m x 0.3 m: leading edge 0.15 m ahead of the origin, 0.15 m to each side.
 ROBOT = Footprint(F("0.3"), F("0.3"))
+# A square of 1 m with its front right corner cut at 45 degrees, 0.3 m from the robot's corner.
+CUT_CORNER = [
+    (F("0.1"), F("0.5")),
+    (F("0.5"), F("0.1")),
+    (F("0.5"), F("-0.5")),
+    (F("-0.5"), F("-0.5")),
+    (F("-0.5"), F("0.5")),
+]
+# A 2 m square with a notch cut from its front whose tip points at the robot from 0.3 m ahead.
+NOTCHED = [
+    (F(1), F(-1)),
+    (F(1), F(-1, 2)),
+    (F(3, 10), F(0)),
+    (F(1), F(1, 2)),
+    (F(1), F(1)),
+    (F(-1), F(1)),
+    (F(-1), F(-1)),
+]
 
 
 def _box(x0: str, x1: str, y0: str, y1: str) -> list[tuple[F, F]]:
@@ -80,15 +98,8 @@ def test_clearance_all_round_is_the_distance_to_the_boundary() -> None:
     assert contains_footprint(square, ROBOT)
     assert clearance_sq_m2(square, ROBOT) == F("0.35") ** 2
     # A corner cut at 45 degrees: the nearest point is the footprint's corner.
-    cut = [
-        (F("0.1"), F("0.5")),
-        (F("0.5"), F("0.1")),
-        (F("0.5"), F("-0.5")),
-        (F("-0.5"), F("-0.5")),
-        (F("-0.5"), F("0.5")),
-    ]
     # Distance from the corner (0.15, 0.15) to the line x + y = 0.6: (0.6 - 0.3) / sqrt(2).
-    assert clearance_sq_m2(cut, ROBOT) == (F("0.3") ** 2) / 2
+    assert clearance_sq_m2(CUT_CORNER, ROBOT) == (F("0.3") ** 2) / 2
     # The tutorial's box does not hold the robot: no clearance at all.
     assert clearance_sq_m2(_box("0", "0.4", "-0.3", "0.3"), ROBOT) == 0
 
@@ -166,16 +177,7 @@ def test_a_zone_just_too_small_or_touching_the_footprint() -> None:
     assert not contains_footprint(right, ON_GRID)
     # A notch pointing at the robot's front from 0.3 m: the notch's edges, extended, would
     # cut the footprint; the edges themselves stop short of it.
-    notched = [
-        (F(1), F(-1)),
-        (F(1), F(-1, 2)),
-        (F(3, 10), F(0)),
-        (F(1), F(1, 2)),
-        (F(1), F(1)),
-        (F(-1), F(1)),
-        (F(-1), F(-1)),
-    ]
-    assert contains_footprint(notched, ON_GRID)
+    assert contains_footprint(NOTCHED, ON_GRID)
     # A repeated vertex (a zero-length edge) is read as the point it is.
     square = _box("-0.5", "0.5", "-0.5", "0.5")
     assert clearance_sq_m2([square[0], *square], ROBOT) == F("0.35") ** 2
@@ -247,26 +249,11 @@ def test_a_ring_whose_edges_cross_in_front_of_the_robot() -> None:
 
 
 def test_clearance_reaches_a_vertex_pointing_at_the_robot_and_every_corner() -> None:
-    notched = [
-        (F(1), F(-1)),
-        (F(1), F(-1, 2)),
-        (F(3, 10), F(0)),
-        (F(1), F(1, 2)),
-        (F(1), F(1)),
-        (F(-1), F(1)),
-        (F(-1), F(-1)),
-    ]
     # The notch's tip 0.3 m ahead of the origin, 0.15 m from the robot's front.
-    assert clearance_sq_m2(notched, ROBOT) == F("0.15") ** 2
-    # A cut at the rear left: its nearest point is the corner (-0.15, -0.15).
-    cut = [
-        (F("-0.5"), F("0.5")),
-        (F("-0.5"), F("-0.1")),
-        (F("-0.1"), F("-0.5")),
-        (F("0.5"), F("-0.5")),
-        (F("0.5"), F("0.5")),
-    ]
-    assert clearance_sq_m2(cut, ROBOT) == (F("0.3") ** 2) / 2
+    assert clearance_sq_m2(NOTCHED, ROBOT) == F("0.15") ** 2
+    # The same cut at the rear left (a half turn): its nearest point is the corner (-0.15, -0.15).
+    rear_left = [(-x, -y) for x, y in CUT_CORNER]
+    assert clearance_sq_m2(rear_left, ROBOT) == (F("0.3") ** 2) / 2
 
 
 def test_a_direction_or_footprint_that_does_not_exist_is_refused() -> None:
