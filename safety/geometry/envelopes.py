@@ -26,15 +26,25 @@ class -1, and every track then gets this fallback.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
 from pipeline.classify.model import PERSON_CLASS
 from pipeline.config import PredictSection, SafecaseConfig
 from pipeline.constructive import disc_points, minkowski
+from pipeline.errors import GeometryError
 from pipeline.frames import checked_pose, inverse, is_identity
-from pipeline.types import ConvexPolygons, Envelopes, FloatArray, PredictionMode, Predictions
-from safety.geometry.polygons import convex_polygons, transform_polygons
+from pipeline.types import (
+    BoolArray,
+    ConvexPolygons,
+    Envelopes,
+    FloatArray,
+    PredictionMode,
+    Predictions,
+)
+from safety.geometry.polygons import MAX_COORD_M, convex_polygons, transform_polygons
 from safety.model.stopping import StoppingParams, person_floor_mps, tier_value
 
 __all__ = ["ROUNDING_M", "EnvelopeBuilder", "body_polygons", "grown_polygons"]
@@ -43,6 +53,9 @@ _TIER_CODES = (0, 1, 2)  # Tier.HIGH, Tier.MEDIUM, Tier.NEAR_REVERSAL
 # Added to every growth radius [m]: the polygons are built in floats from points on the exact
 # region's boundary, and this keeps a rounding error (~1e-15 m here) on the safe side.
 ROUNDING_M = 1e-9
+# A disc row skips the hull when its vertices stand this far (relative to its coordinates)
+# from every chord (:func:`_disc_rows`); the hull's own allowance is about 3e-15.
+_RING_MIN = 1e-6
 
 
 def grown_polygons(reach_xy_m: FloatArray, radius_m: FloatArray, sides: int) -> ConvexPolygons:
@@ -54,7 +67,77 @@ def grown_polygons(reach_xy_m: FloatArray, radius_m: FloatArray, sides: int) -> 
         return convex_polygons(np.zeros((0, 3, 2)))
     radius = np.asarray(radius_m, dtype=np.float64) + ROUNDING_M
     discs = disc_points(np.zeros(n), np.zeros(n), radius, sides)
-    return convex_polygons(minkowski(reach_xy_m, discs))
+    points = minkowski(reach_xy_m, discs)
+    ring = _disc_rows(radius, points, sides)
+    if not ring.any():
+        return convex_polygons(points)
+    return _merged(points, ring, sides)
+
+
+def _disc_rows(radius: FloatArray, points: FloatArray, sides: int) -> BoolArray:
+    """Rows whose grown polygon is their disc's ``sides`` points as they stand: the reach added
+    no edge that survives rounding (it is one point), and the disc is wide against rounding
+    at the row's coordinates.
+
+    Such a row's points (``points``, from :func:`minkowski`) are the disc's vertices in
+    counter-clockwise order, repeated where the reach adds zero-length edges: exactly ``sides``
+    distinct consecutive points. A vertex of a regular ``sides``-gon of circumradius R lies at
+    least ``2 R sin^2(pi / sides)`` from the line through any two other vertices, so when that
+    is above :data:`_RING_MIN` times the row's largest coordinate (nine orders of magnitude
+    above the hull's rounding allowance, ``HULL_HALFPLANE``) every point is certainly a vertex
+    and the convex hull would return exactly these points, without slack. Rows of a batch
+    with any coordinate the hull would refuse are never taken (the hull names the bad row).
+    """
+    if not (np.isfinite(points).all() and np.abs(points).max(initial=0.0) <= MAX_COORD_M):
+        return np.zeros(points.shape[0], dtype=bool)
+    depth = 2.0 * radius * math.sin(math.pi / sides) ** 2
+    wide = depth >= _RING_MIN * np.abs(points).max(axis=(1, 2))
+    found: BoolArray = wide & (_steps(points).sum(axis=1) == sides)
+    return found
+
+
+def _steps(points: FloatArray) -> BoolArray:
+    """(n, P): each point differs from the one before it (the first always counts)."""
+    step = np.ones(points.shape[:2], dtype=bool)
+    step[:, 1:] = (points[:, 1:] != points[:, :-1]).any(axis=2)
+    return step
+
+
+def _merged(points: FloatArray, ring: BoolArray, sides: int) -> ConvexPolygons:
+    """The convex polygons of ``points``: the ``ring`` rows (:func:`_disc_rows`) read off in
+    the hull's order (counter-clockwise from the lowest-x point, ties to the lowest y), the
+    others through the hull; the same arrays the hull gives for the whole batch."""
+    n = points.shape[0]
+    idx = np.flatnonzero(ring)
+    pts = points[idx]
+    verts = pts[_steps(pts)].reshape(idx.size, sides, 2)
+    x, y = verts[:, :, 0], verts[:, :, 1]
+    start = np.where(x == x.min(axis=1, keepdims=True), y, np.inf).argmin(axis=1)
+    turn = (start[:, None] + np.arange(sides)[None, :]) % sides
+    rows = np.arange(idx.size)[:, None]
+    counts = np.full(n, sides, dtype=np.int64)
+    slack = np.zeros(n)
+    rest = np.flatnonzero(~ring)
+    try:
+        other = convex_polygons(points[rest]) if rest.size else None
+    except GeometryError:
+        # The whole batch raises the same error naming the row by its index in the batch.
+        return convex_polygons(points)
+    if other is not None:
+        counts[rest], slack[rest] = other.counts, other.slack_m
+    k = int(counts.max())
+    out = np.empty((2, k, n))
+    block = np.empty((2, k, idx.size))
+    block[0, :sides] = x[rows, turn].T
+    block[1, :sides] = y[rows, turn].T
+    block[:, sides:] = block[:, :1]
+    out[:, :, idx] = block
+    if other is not None:
+        block = np.empty((2, k, rest.size))
+        block[:, : other.k] = other.vertices_m
+        block[:, other.k :] = other.vertices_m[:, :1]
+        out[:, :, rest] = block
+    return ConvexPolygons(vertices_m=out, counts=counts, slack_m=slack)
 
 
 def body_polygons(predictions: Predictions, sides: int) -> ConvexPolygons:
