@@ -37,7 +37,7 @@ from pipeline.types import FloatArray, PredictionMode, TrackStatus
 from safety.availability import Campaign, Comparison, compare_all, run_ours
 from safety.availability_plot import NUISANCE_TARGET, PROGRESS_TARGET, campaign_figure
 from safety.baseline import Nav2Baseline, points_inside
-from safety.bodies import hull_bodies
+from safety.bodies import SeenHulls, hull_bodies
 from safety.model.freshness import is_fresh
 from safety.obstacles import OBJECT_SPEED_WATCH, bodies_now
 from safety.runtime import Levers
@@ -370,7 +370,8 @@ def test_every_return_lies_in_its_outline_body(
             clusters, points, pose = seen.clusters, seen.points, seen.pose
             unknown = pred.mode == int(PredictionMode.UNKNOWN)
             discs = bodies_now(pred, tracks, unknown, config.predict.disc_sides)
-            bodies = hull_bodies(unknown, discs, pred, tracks, clusters, pose, config.predict)
+            seen_hulls = SeenHulls.of(unknown, pred, tracks, clusters, pose, config.predict)
+            bodies = hull_bodies(unknown, discs, seen_hulls)
             rows = np.flatnonzero(unknown)
             for k, r in enumerate(rows):
                 det = int(

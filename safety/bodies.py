@@ -55,11 +55,13 @@ from safety.obstacles import bodies_now, with_columns
 
 __all__ = [
     "OnMapMemory",
+    "SeenHulls",
     "StillHulls",
     "cluster_hulls",
     "hull_bodies",
     "mapped_rows",
     "mapped_zones",
+    "still_zones",
     "tracks_on_map",
 ]
 
@@ -88,29 +90,71 @@ def _updating_cluster(tracks: Tracks, clusters: Clusters) -> IntArray:
     return found
 
 
-def hull_bodies(
-    rows: BoolArray,
-    bodies: ConvexPolygons,
-    pred: Predictions,
-    tracks: Tracks,
-    clusters: Clusters,
-    pose: Pose,
-    predict_section: PredictSection,
+@dataclass(frozen=True)
+class SeenHulls:
+    """The outline bodies of the prediction rows seen this cycle, grown in one batch (SR-AVL-6):
+    each row's cluster hull (tracking frame) grown by ``predict.velocity_sigmas`` times its
+    track's larger position sigma. The still zones, the unknown rows' bodies and the mapped
+    zones all read theirs from here (one hull batch a cycle instead of one each).
+
+    ``column`` (per prediction row) is the row's polygon in ``polygons``, -1 where the row was
+    not seen this cycle or not asked for.
+    """
+
+    column: IntArray
+    polygons: ConvexPolygons
+
+    @classmethod
+    def of(
+        cls,
+        rows: BoolArray,
+        pred: Predictions,
+        tracks: Tracks,
+        clusters: Clusters,
+        pose: Pose,
+        predict_section: PredictSection,
+    ) -> SeenHulls:
+        """The bodies of the prediction ``rows`` whose track a cluster updated this cycle."""
+        track_row, det = _seen(pred, tracks, clusters)
+        which = np.flatnonzero(rows & (det >= 0))
+        column = np.full(det.shape, -1, dtype=np.int64)
+        column[which] = np.arange(which.size)
+        sigma = predict_section.velocity_sigmas * largest_std(
+            tracks.covariance[track_row[which], :2, :2]
+        )
+        hulls = cluster_hulls(clusters, det[which], pose)
+        return cls(column, grown_polygons(hulls, sigma, predict_section.disc_sides))
+
+    def take(self, rows: IntArray) -> ConvexPolygons:
+        """The bodies of prediction ``rows`` (each seen and asked for), padded to their own
+        largest vertex count, as a batch of just these rows would be."""
+        polygons = self.polygons.take(self.column[rows])
+        k = int(polygons.counts.max(initial=3))
+        return ConvexPolygons(polygons.vertices_m[:, :k], polygons.counts, polygons.slack_m)
+
+
+def still_zones(
+    pred: Predictions, seen: SeenHulls, predict_section: PredictSection
 ) -> ConvexPolygons:
+    """Predicted zones (no margin), tracking frame: each row's reach region grown by its
+    body disc; a still object (footprint mode) seen this cycle is its cluster's convex hull
+    grown by its position uncertainty instead (a rack bay's disc would cover the aisle)."""
+    zones = grown_polygons(pred.reach_xy_m, pred.body_radius_m, predict_section.disc_sides)
+    still = (pred.mode == int(PredictionMode.FOOTPRINT)) & (seen.column >= 0)
+    if not still.any():
+        return zones
+    idx = np.flatnonzero(still)
+    return with_columns(zones, idx, seen.take(idx))
+
+
+def hull_bodies(rows: BoolArray, bodies: ConvexPolygons, seen: SeenHulls) -> ConvexPolygons:
     """``bodies`` (one per row of ``rows``) with the rows seen this cycle replaced by their
     cluster's hull grown by their position uncertainty (module docstring)."""
-    track_row, det = _seen(pred, tracks, clusters)
     sel = np.flatnonzero(rows)
-    seen = det[sel] >= 0
-    if not seen.any():
+    hit = seen.column[sel] >= 0
+    if not hit.any():
         return bodies
-    which = sel[seen]
-    sigma = predict_section.velocity_sigmas * largest_std(
-        tracks.covariance[track_row[which], :2, :2]
-    )
-    hulls = cluster_hulls(clusters, det[which], pose)
-    grown = grown_polygons(hulls, sigma, predict_section.disc_sides)
-    return with_columns(bodies, np.flatnonzero(seen), grown)
+    return with_columns(bodies, np.flatnonzero(hit), seen.take(sel[hit]))
 
 
 def tracks_on_map(
@@ -136,24 +180,15 @@ def mapped_zones(
     mapped: BoolArray,
     pred: Predictions,
     tracks: Tracks,
-    clusters: Clusters,
-    pose: Pose,
-    predict_section: PredictSection,
+    seen: SeenHulls,
+    sides: int,
 ) -> ConvexPolygons:
     """``zones`` (one per prediction row) with each ``mapped`` row's replaced by its cluster's
-    hull grown by its position uncertainty (the body of :func:`hull_bodies`)."""
+    hull grown by its position uncertainty (the body of :func:`hull_bodies`), or its body disc
+    (``sides`` sides) while it coasts."""
     if not mapped.any():
         return zones
-    sides = predict_section.disc_sides
-    hulls = hull_bodies(
-        mapped,
-        bodies_now(pred, tracks, mapped, sides),
-        pred,
-        tracks,
-        clusters,
-        pose,
-        predict_section,
-    )
+    hulls = hull_bodies(mapped, bodies_now(pred, tracks, mapped, sides), seen)
     return with_columns(zones, np.flatnonzero(mapped), hulls)
 
 

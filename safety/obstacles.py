@@ -14,17 +14,15 @@ import numpy as np
 import numpy.typing as npt
 
 from pipeline.config import PredictSection, SafecaseConfig
-from pipeline.frames import Pose, inverse, to_parent
+from pipeline.frames import Pose, inverse
 from pipeline.track.kalman import largest_std
 from pipeline.types import (
     BoolArray,
-    Clusters,
     ConvexPolygons,
     Envelopes,
     FloatArray,
     FusedTracks,
     IntArray,
-    PredictionMode,
     Predictions,
     Tracks,
     TrackStatus,
@@ -43,7 +41,6 @@ __all__ = [
     "governor_rows",
     "pedestrian_regions",
     "stack_polygons",
-    "still_zones",
     "with_columns",
 ]
 
@@ -77,34 +74,6 @@ def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> 
     counts, slack = base.counts.copy(), base.slack_m.copy()
     counts[idx], slack[idx] = other.counts, other.slack_m
     return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)
-
-
-def still_zones(
-    pred: Predictions,
-    tracks: Tracks,
-    clusters: Clusters,
-    pose: Pose,
-    predict_section: PredictSection,
-) -> ConvexPolygons:
-    """Predicted zones (no margin), tracking frame: each row's reach region grown by its
-    body disc; a still object (footprint mode) seen this cycle is its cluster's convex hull
-    grown by its position uncertainty instead (a rack bay's disc would cover the aisle)."""
-    sides = predict_section.disc_sides
-    zones = grown_polygons(pred.reach_xy_m, pred.body_radius_m, sides)
-    row = np.searchsorted(tracks.track_id, pred.track_id)
-    det = tracks.detection_index[row]
-    still = (pred.mode == int(PredictionMode.FOOTPRINT)) & (det >= 0) & (det < clusters.n)
-    if not still.any():
-        return zones
-    idx = np.flatnonzero(still)
-    sigma = predict_section.velocity_sigmas * largest_std(tracks.covariance[row[idx], :2, :2])
-    k = det[idx]
-    start, size = clusters.hull_offsets[k], np.diff(clusters.hull_offsets)[k]
-    # Each hull padded by repeating its last vertex (a zero-length edge).
-    pick = start[:, None] + np.minimum(np.arange(size.max())[None, :], size[:, None] - 1)
-    hx, hy = clusters.hull_x_m[pick], clusters.hull_y_m[pick]
-    hull = np.stack(to_parent(pose, hx, hy), axis=2)
-    return with_columns(zones, idx, grown_polygons(hull, sigma, sides))
 
 
 def faster_than_the_domain(

@@ -65,10 +65,12 @@ from pipeline.types import (
 from safety.audit.log import AuditWriter, BackgroundAuditWriter, CycleRecord, summarize
 from safety.bodies import (
     OnMapMemory,
+    SeenHulls,
     StillHulls,
     hull_bodies,
     mapped_rows,
     mapped_zones,
+    still_zones,
     tracks_on_map,
 )
 from safety.closing import directed_closing
@@ -100,7 +102,6 @@ from safety.obstacles import (
     governor_rows,
     pedestrian_regions,
     stack_polygons,
-    still_zones,
 )
 
 # The cycle's data types live in safety.cycle; they are re-exported here, where users look.
@@ -317,17 +318,19 @@ class Runtime:
                 inp.now_s + elapsed_s(), fused, robot_now, config, self.params, self.envelopes
             )
         with watch.stage("path"):
-            zones = still_zones(pred, fused.tracks, clusters, pose, config.predict)
+            unknown = pred.mode == int(PredictionMode.UNKNOWN)
+            still = pred.mode == int(PredictionMode.FOOTPRINT)
+            seen = SeenHulls.of(still | unknown, pred, fused.tracks, clusters, pose, config.predict)
+            zones = still_zones(pred, seen, config.predict)
             if self.levers.outline_bodies:
                 # A still object not seen this cycle keeps its last hull (SR-AVL-6).
                 zones = self.still_hulls.zones(
                     zones, pred, fused.tracks, clusters, pose, config.predict
                 )
-            unknown = pred.mode == int(PredictionMode.UNKNOWN)
             # Unknown motion wholly on the site's map is the fixed structure: it is where it
             # stands, so its hull is a zone read along the path (SR-AVL-8).
             mapped = mapped_rows(unknown, pred, fused.tracks, on_map)
-            zones = mapped_zones(zones, mapped, pred, fused.tracks, clusters, pose, config.predict)
+            zones = mapped_zones(zones, mapped, pred, fused.tracks, seen, config.predict.disc_sides)
             loose = clusters.point_labels < 0
             dist = self.clearance.free_distances(
                 inp.path, zones, *to_parent(pose, points.x_m[loose], points.y_m[loose])
@@ -335,9 +338,7 @@ class Runtime:
             here = bodies_now(pred, fused.tracks, unknown, config.predict.disc_sides)
             if self.levers.outline_bodies:
                 # An object of unknown motion seen this cycle is its cluster's hull (SR-AVL-6).
-                here = hull_bodies(
-                    unknown, here, pred, fused.tracks, clusters, pose, config.predict
-                )
+                here = hull_bodies(unknown, here, seen)
             free = dist.zone_free_m.copy()
             free[unknown] = self.clearance.distances_now(inp.path, here)
             free[mapped] = dist.zone_free_m[mapped]

@@ -107,11 +107,16 @@ class CostmapBuilder:
         c_hi = np.floor((np.where(some, xmax, x0) + tol - x0) / r).astype(np.int64)
         c_lo, c_hi = np.maximum(c_lo, 0), np.minimum(c_hi, cols - 1)
         keep = some & (c_lo <= c_hi)
-        # Mark column ranges through a difference array: +1 at the start, -1 past the end.
-        diff = np.zeros((rows, cols + 1), dtype=np.int32)
-        np.add.at(diff, (row[keep], c_lo[keep]), 1)
-        np.add.at(diff, (row[keep], c_hi[keep] + 1), -1)
-        occupied = np.cumsum(diff[:, :cols], axis=1) > 0
+        # Mark column ranges through a difference array over the grid rows touched: +1 at the
+        # start, -1 past the end (bincount, not np.add.at, which is several times slower).
+        touched, local = np.unique(row[keep], return_inverse=True)
+        width = cols + 1
+        size = touched.size * width
+        start = local * width + c_lo[keep]
+        diff = np.bincount(start, minlength=size) - np.bincount(
+            start + (c_hi[keep] - c_lo[keep] + 1), minlength=size
+        )
+        occupied[touched] = np.cumsum(diff.reshape(touched.size, width)[:, :cols], axis=1) > 0
         return Costmap(occupied, x0, y0, r, clipped)
 
 

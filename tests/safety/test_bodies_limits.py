@@ -22,6 +22,7 @@ from pipeline.cluster.dbscan import cluster_scan
 from pipeline.config import default_config
 from pipeline.frames import Pose, to_parent
 from pipeline.static_map import StaticMap
+from pipeline.track.kalman import largest_std
 from pipeline.types import (
     Clusters,
     ConvexPolygons,
@@ -35,14 +36,17 @@ from pipeline.types import (
 from properties.fusion_cases import make_tracks
 from safety.bodies import (
     OnMapMemory,
+    SeenHulls,
     StillHulls,
+    cluster_hulls,
     hull_bodies,
     mapped_rows,
     mapped_zones,
+    still_zones,
     tracks_on_map,
 )
 from safety.geometry.envelopes import grown_polygons
-from safety.obstacles import bodies_now, still_zones
+from safety.obstacles import bodies_now
 
 BODIES = ["safety/bodies.py"]
 CONFIG = default_config()
@@ -137,16 +141,43 @@ def test_a_row_seen_this_cycle_is_its_cluster_grown_by_its_largest_position_sigm
     pred = _predictions([9, 4, 7], [CONE, CONE, CONE])
     rows = np.ones(3, dtype=bool)
     discs = bodies_now(pred, tracks, rows, SIDES)
-    out = hull_bodies(rows, discs, pred, tracks, clusters, POSE, PS)
+    seen = SeenHulls.of(rows, pred, tracks, clusters, POSE, PS)
+    assert seen.column.tolist() == [-1, 0, -1]
+    out = hull_bodies(rows, discs, seen)
     _holds(_polygon(out, 1), _returns(points, clusters, 0, POSE), K * 0.2)
     assert _same(out, 0, discs, 0)
     assert _same(out, 2, discs, 2)
-    assert hull_bodies(~rows, discs, pred, tracks, clusters, POSE, PS) is discs
+    assert hull_bodies(~rows, discs, seen) is discs
+    # a row not asked for is not built
+    assert hull_bodies(rows, discs, SeenHulls.of(~rows, pred, tracks, clusters, POSE, PS)) is discs
 
 
-@pytest.mark.requirement("SR-AVL-6", kind="example", code=["safety/obstacles.py"])
+@pytest.mark.requirement("SR-AVL-6", kind="example", code=BODIES)
+def test_a_body_from_the_cycle_s_batch_equals_its_own_batch() -> None:
+    """The cycle grows every asked-for hull in one batch; what each user takes from it (any
+    subset, any order) is bit for bit the batch of just those rows: vertices, padding, counts,
+    slack."""
+    _, clusters = _scan()
+    xy = np.array([[0.0, 0.0], [1.0, 0.5], [2.0, -1.0], [3.0, 0.0]])
+    tracks = _tracks([3, 4, 7, 9], xy, [0, 1, 1, -1], [0.05, 0.3, 0.2, 0.1])
+    pred = _predictions([9, 7, 4, 3], [FOOTPRINT, CONE, FOOTPRINT, CONE])
+    seen = SeenHulls.of(np.ones(4, dtype=bool), pred, tracks, clusters, POSE, PS)
+    assert seen.column.tolist() == [-1, 0, 1, 2]
+    row = np.searchsorted(tracks.track_id, pred.track_id)
+    for rows in ([1], [2], [3], [3, 1], [1, 2, 3], [2, 3]):
+        idx = np.array(rows)
+        det = tracks.detection_index[row[idx]]
+        sigma = K * largest_std(tracks.covariance[row[idx], :2, :2])
+        alone = grown_polygons(cluster_hulls(clusters, det, POSE), sigma, SIDES)
+        got = seen.take(idx)
+        np.testing.assert_array_equal(got.vertices_m, alone.vertices_m)
+        np.testing.assert_array_equal(got.counts, alone.counts)
+        np.testing.assert_array_equal(got.slack_m, alone.slack_m)
+
+
+@pytest.mark.requirement("SR-AVL-6", kind="example", code=BODIES)
 def test_a_still_object_seen_this_cycle_is_zoned_by_its_cluster_s_hull() -> None:
-    """Predicted zones (safety.obstacles.still_zones) of five tracks: still (footprint) rows
+    """Predicted zones (safety.bodies.still_zones) of five tracks: still (footprint) rows
     updated by cluster 0 and by cluster 1 become that cluster's hull in the tracking frame,
     grown by K times the track's larger position sigma (0.1 m and 0.3 m); a cone row updated by
     cluster 0, a still row coasting and one whose detection index is past the clusters keep
@@ -157,7 +188,9 @@ def test_a_still_object_seen_this_cycle_is_zoned_by_its_cluster_s_hull() -> None
     xy = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0], [4.0, 0.0]])
     tracks = _tracks([2, 5, 7, 9, 11], xy, [0, 1, 0, -1, clusters.n], [0.1, 0.3, 0.1, 0.1, 0.1])
     pred = _predictions([2, 5, 7, 9, 11], [FOOTPRINT, FOOTPRINT, CONE, FOOTPRINT, FOOTPRINT])
-    zones = still_zones(pred, tracks, clusters, POSE, PS)
+    zones = still_zones(
+        pred, SeenHulls.of(np.ones(5, dtype=bool), pred, tracks, clusters, POSE, PS), PS
+    )
     discs = grown_polygons(pred.reach_xy_m, pred.body_radius_m, SIDES)
     assert zones.n == 5
     for j, k, sigma in ((0, 0, 0.1), (1, 1, 0.3)):
@@ -198,12 +231,13 @@ def test_a_mapped_zone_is_the_cluster_hull_or_the_disc_while_it_coasts() -> None
     pred = _predictions([1, 3, 6], [CONE, CONE, CONE])
     zones = grown_polygons(np.full((3, 1, 2), 20.0), np.full(3, 0.5), SIDES)
     mapped = np.array([True, True, False])
-    out = mapped_zones(zones, mapped, pred, tracks, clusters, POSE, PS)
+    seen = SeenHulls.of(mapped, pred, tracks, clusters, POSE, PS)
+    out = mapped_zones(zones, mapped, pred, tracks, seen, SIDES)
     _holds(_polygon(out, 0), _returns(points, clusters, 1, POSE), K * 0.1)
     disc = bodies_now(pred, tracks, np.array([False, True, False]), SIDES)
     assert _same(out, 1, disc, 0)
     assert _same(out, 2, zones, 2)
-    assert mapped_zones(zones, ~np.ones(3, dtype=bool), pred, tracks, clusters, POSE, PS) is zones
+    assert mapped_zones(zones, ~np.ones(3, dtype=bool), pred, tracks, seen, SIDES) is zones
 
 
 def _cycle(
