@@ -76,7 +76,16 @@ def _grown(reach: FloatArray, radius: FloatArray, sides: int) -> ConvexPolygons 
         12,
     )
 )
+# a body beside one beyond the coordinates the hull accepts: the hull names the far row
 @example(batch=(np.array([[[1.0, 1.0]], [[-1.0e6, 2.0]]]), np.array([0.5, 20.0]), 12))
+# a body beside a far triangle whose disc rounds away (4 vertices): the triangle is padded
+@example(
+    batch=(
+        np.array([[[1.0, 1.0]] * 3, [[9.0e5, 2.0], [9.0e5 + 3.0, 2.0], [9.0e5, 5.0]]]),
+        np.array([0.5, 0.0]),
+        12,
+    )
+)
 def test_a_grown_polygon_is_the_hull_of_its_points(
     batch: tuple[FloatArray, FloatArray, int],
 ) -> None:

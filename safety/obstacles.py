@@ -62,15 +62,8 @@ def stack_polygons(a: ConvexPolygons, b: ConvexPolygons) -> ConvexPolygons:
 def with_columns(base: ConvexPolygons, idx: IntArray, other: ConvexPolygons) -> ConvexPolygons:
     """``base`` with polygons ``idx`` replaced by those of ``other`` (in order)."""
     k = max(base.k, other.k)
-
-    def padded(p: ConvexPolygons) -> FloatArray:
-        out = np.empty((2, k, p.n))
-        out[:, : p.k] = p.vertices_m
-        out[:, p.k :] = p.vertices_m[:, :1]
-        return out
-
-    verts = padded(base)
-    verts[:, :, idx] = padded(other)
+    verts = base.padded_vertices(k)
+    verts[:, :, idx] = other.padded_vertices(k)
     counts, slack = base.counts.copy(), base.slack_m.copy()
     counts[idx], slack[idx] = other.counts, other.slack_m
     return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=slack)

@@ -87,6 +87,16 @@ class ConvexPolygons:
         count = int(self.counts[i])
         return np.ascontiguousarray(self.vertices_m[:, :count, i].T)
 
+    def padded_vertices(self, k: int) -> FloatArray:
+        """``vertices_m`` padded to ``k`` (at least K) vertices with copies of each polygon's
+        first vertex, as a fresh (2, k, N) array."""
+        if k < self.k:
+            raise GeometryError(f"ConvexPolygons: cannot pad {self.k} vertices to {k}")
+        out = np.empty((2, k, self.n))
+        out[:, : self.k] = self.vertices_m
+        out[:, self.k :] = self.vertices_m[:, :1]
+        return out
+
     def take(self, indices: npt.ArrayLike) -> ConvexPolygons:
         """The polygons at ``indices`` (in that order), with the same padding K."""
         idx = np.asarray(indices, dtype=np.int64)

@@ -85,14 +85,17 @@ def _disc_rows(radius: FloatArray, points: FloatArray, sides: int) -> BoolArray:
     least ``2 R sin^2(pi / sides)`` from the line through any two other vertices, so when that
     is above :data:`_RING_MIN` times the row's largest coordinate (nine orders of magnitude
     above the hull's rounding allowance, ``HULL_HALFPLANE``) every point is certainly a vertex
-    and the convex hull would return exactly these points, without slack. Rows of a batch
-    with any coordinate the hull would refuse are never taken (the hull names the bad row).
+    and the convex hull would return exactly these points, without slack. A row with a
+    non-finite coordinate is never wide (NaN compares false); one beyond the coordinates the
+    hull accepts is left to the hull, which refuses it.
     """
-    if not (np.isfinite(points).all() and np.abs(points).max(initial=0.0) <= MAX_COORD_M):
-        return np.zeros(points.shape[0], dtype=bool)
+    magnitude = np.abs(points).max(axis=(1, 2))
     depth = 2.0 * radius * math.sin(math.pi / sides) ** 2
-    wide = depth >= _RING_MIN * np.abs(points).max(axis=(1, 2))
-    found: BoolArray = wide & (_steps(points).sum(axis=1) == sides)
+    found: BoolArray = (
+        (depth >= _RING_MIN * magnitude)
+        & (magnitude <= MAX_COORD_M)
+        & (_steps(points).sum(axis=1) == sides)
+    )
     return found
 
 
@@ -108,6 +111,12 @@ def _merged(points: FloatArray, ring: BoolArray, sides: int) -> ConvexPolygons:
     the hull's order (counter-clockwise from the lowest-x point, ties to the lowest y), the
     others through the hull; the same arrays the hull gives for the whole batch."""
     n = points.shape[0]
+    rest = np.flatnonzero(~ring)
+    try:
+        other = convex_polygons(points[rest])
+    except GeometryError:
+        # The whole batch raises the same error, naming the row by its index in the batch.
+        return convex_polygons(points)
     idx = np.flatnonzero(ring)
     pts = points[idx]
     verts = pts[_steps(pts)].reshape(idx.size, sides, 2)
@@ -115,28 +124,17 @@ def _merged(points: FloatArray, ring: BoolArray, sides: int) -> ConvexPolygons:
     start = np.where(x == x.min(axis=1, keepdims=True), y, np.inf).argmin(axis=1)
     turn = (start[:, None] + np.arange(sides)[None, :]) % sides
     rows = np.arange(idx.size)[:, None]
-    counts = np.full(n, sides, dtype=np.int64)
+    discs = ConvexPolygons(
+        np.stack([x[rows, turn].T, y[rows, turn].T]), np.full(idx.size, sides), np.zeros(idx.size)
+    )
+    counts = np.full(n, sides)
+    counts[rest] = other.counts
     slack = np.zeros(n)
-    rest = np.flatnonzero(~ring)
-    try:
-        other = convex_polygons(points[rest]) if rest.size else None
-    except GeometryError:
-        # The whole batch raises the same error naming the row by its index in the batch.
-        return convex_polygons(points)
-    if other is not None:
-        counts[rest], slack[rest] = other.counts, other.slack_m
+    slack[rest] = other.slack_m
     k = int(counts.max())
     out = np.empty((2, k, n))
-    block = np.empty((2, k, idx.size))
-    block[0, :sides] = x[rows, turn].T
-    block[1, :sides] = y[rows, turn].T
-    block[:, sides:] = block[:, :1]
-    out[:, :, idx] = block
-    if other is not None:
-        block = np.empty((2, k, rest.size))
-        block[:, : other.k] = other.vertices_m
-        block[:, other.k :] = other.vertices_m[:, :1]
-        out[:, :, rest] = block
+    out[:, :, idx] = discs.padded_vertices(k)
+    out[:, :, rest] = other.padded_vertices(k)
     return ConvexPolygons(vertices_m=out, counts=counts, slack_m=slack)
 
 

@@ -170,6 +170,20 @@ def test_the_hull_keeps_the_corners_counter_clockwise_from_the_lowest_x() -> Non
         assert got.vertex_list(0).tolist() == diamond
 
 
+@pytest.mark.requirement("SR-SAT-4", kind="example", code=["pipeline/types/geometry.py"])
+def test_padding_repeats_each_first_vertex_and_never_shrinks() -> None:
+    """A triangle and a square (K = 4) padded to 6 vertices: each column's own vertices, then
+    copies of its first; padding below K is refused."""
+    polys = convex_polygons([_ring([[0.0, 0.0], [2.0, 0.0], [0.0, 1.0]]), _ring(SQUARE)])
+    out = polys.padded_vertices(6)
+    assert out.shape == (2, 6, 2)
+    assert out[:, :, 0].T.tolist() == [[0.0, 0.0], [2.0, 0.0], [0.0, 1.0]] + [[0.0, 0.0]] * 3
+    assert out[:, :, 1].T.tolist() == SQUARE + [[0.0, 0.0]] * 2
+    np.testing.assert_array_equal(polys.padded_vertices(4), polys.vertices_m)
+    with pytest.raises(GeometryError, match="cannot pad 4 vertices to 3"):
+        polys.padded_vertices(3)
+
+
 @pytest.mark.requirement("SR-SAT-1", kind="example", code=POLYGONS)
 def test_a_point_on_an_edge_gives_the_hull_its_rounding_slack() -> None:
     """A point exactly on an edge is left out but not certainly inside: the polygon gets the
