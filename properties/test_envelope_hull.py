@@ -23,6 +23,7 @@ from evidence.record import current
 from pipeline.constructive import disc_points, minkowski, sector_points
 from pipeline.errors import GeometryError
 from pipeline.types import ConvexPolygons, FloatArray
+from safety.geometry import envelopes
 from safety.geometry.envelopes import ROUNDING_M, grown_polygons
 from safety.geometry.polygons import convex_polygons
 
@@ -125,3 +126,42 @@ def test_a_body_disc_starts_at_its_lowest_x_vertex() -> None:
             x - x.mean(), -1
         )
         assert (turn > 0).all()
+
+
+def _hulled_rows(
+    monkeypatch: pytest.MonkeyPatch, reach: FloatArray, radius: FloatArray, sides: int
+) -> int:
+    """How many rows of one grown_polygons call went through the hull (the rest were read off)."""
+    rows: list[int] = []
+
+    def counting(points: FloatArray) -> ConvexPolygons:
+        rows.append(int(np.asarray(points).shape[0]))
+        return convex_polygons(points)
+
+    monkeypatch.setattr(envelopes, "convex_polygons", counting)
+    grown_polygons(reach, radius, sides)
+    monkeypatch.undo()
+    return sum(rows)
+
+
+@pytest.mark.requirement("SR-PRED-1", kind="example", code=ENVELOPES)
+def test_only_rows_that_are_not_a_wide_disc_go_through_the_hull(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Bodies alone never run the hull; beside a region only the region does; at 1 km a disc
+    2 % wider than the width threshold (2 R sin^2(pi/n) >= 1e-6 of the coordinates) is read
+    off and one 2 % narrower is hulled, while at 1 m a 1 mm disc is read off."""
+    sides = 12
+    factor = 2.0 * math.sin(math.pi / sides) ** 2
+    bodies = np.array([[[3.0, 1.0]], [[-2.0, 0.5]], [[0.0, 7.0]]])
+    assert _hulled_rows(monkeypatch, bodies, np.array([0.4, 0.3, 0.25]), sides) == 0
+    sector = sector_points(
+        np.array([1.0]), np.array([2.0]), np.array([0.3]), np.array([0.2]), np.array([1.5]),
+        0.3, sides,
+    )  # fmt: skip
+    mixed = np.concatenate([np.repeat(bodies[:2], sector.shape[1], axis=1), sector])
+    assert _hulled_rows(monkeypatch, mixed, np.array([0.4, 0.3, 0.25]), sides) == 1
+    centre = np.array([[[1000.0, 0.0]], [[1000.0, 0.0]], [[1.0, 0.0]]])
+    wide, narrow = (1.02e-3 / factor, 0.98e-3 / factor)  # against 1e-6 x 1000 m
+    radius = np.array([wide, narrow, 1e-3])
+    assert _hulled_rows(monkeypatch, centre, radius, sides) == 1
