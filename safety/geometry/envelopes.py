@@ -61,7 +61,10 @@ _RING_MIN = 1e-6
 def grown_polygons(reach_xy_m: FloatArray, radius_m: FloatArray, sides: int) -> ConvexPolygons:
     """Convex polygons containing each reach region (n, P, 2; counter-clockwise vertices) grown
     by a disc of ``radius_m`` (plus :data:`ROUNDING_M`, so float rounding of the construction
-    cannot leave a point of the exact region outside)."""
+    cannot leave a point of the exact region outside; SR-PRED-1).
+
+    The polygons are the convex hull of the Minkowski points; a row that is a wide disc around
+    one point (:func:`_disc_rows`) is read off without the hull, with the same arrays."""
     n = reach_xy_m.shape[0]
     if n == 0:
         return convex_polygons(np.zeros((0, 3, 2)))
