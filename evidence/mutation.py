@@ -13,15 +13,17 @@ The tests that claim a module, and those left out, are chosen by
 :mod:`evidence.mutation_targets`.
 
 Each module's result is committed evidence: ``safety/mutation/<module>.json`` holds every
-mutant's stable description (:func:`mutant_key`) and outcome with the SHA-256 of the module
-and of each selected test file (:func:`digest`). :func:`load_results` recomputes those hashes:
-a result is *fresh* when nothing changed, *stale* when the module or its tests changed since
-(``why`` says what), and *missing* when the module was never measured. Durations are
-wall-clock seconds.
+mutant's stable description (:func:`mutant_key`) and outcome with the code hash of the module
+and of each selected test file (:func:`code_sha256`: the SHA-256 of the syntax tree without
+docstrings, comments, layout or line numbers, none of which mutmut mutates or a test run
+reads). :func:`load_results` recomputes those hashes: a result is *fresh* when no code
+changed, *stale* when the module or its tests changed since (``why`` says what), and *missing*
+when the module was never measured. Durations are wall-clock seconds.
 """
 
 from __future__ import annotations
 
+import ast
 import difflib
 import hashlib
 import json
@@ -45,6 +47,7 @@ __all__ = [
     "MutantOutcome",
     "Status",
     "Target",
+    "code_sha256",
     "describe",
     "digest",
     "left_out",
@@ -58,7 +61,7 @@ __all__ = [
     "write_result",
 ]
 
-SCHEMA = "safecase-mutation/2"
+SCHEMA = "safecase-mutation/3"
 # Committed beside the equivalents list: CI reads them on a clean clone (out/ is not tracked).
 RESULTS_DIR = Path("safety/mutation")
 EQUIVALENTS_FILE = Path("safety/mutation-equivalents.toml")
@@ -74,17 +77,43 @@ Status = Literal["killed", "timeout", "survived", "no tests", "suspicious", "not
 DETECTED: frozenset[str] = frozenset({"killed", "timeout"})
 
 
+_DOCUMENTED = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
+
+
+def code_sha256(source: bytes) -> str:
+    """SHA-256 (hex) of Python ``source``'s code: its syntax tree with every docstring (the
+    leading string of a module, class or function) taken out, dumped without line numbers.
+    Comments and layout never reach the tree. An edit of documentation alone therefore keeps a
+    mutation result fresh; any change of code, a constant or a string that is not a docstring
+    makes it stale. Source that does not parse is hashed as bytes."""
+    try:
+        tree = ast.parse(source)
+    except (SyntaxError, ValueError):
+        return hashlib.sha256(b"bytes:" + source).hexdigest()
+    for node in ast.walk(tree):
+        if isinstance(node, _DOCUMENTED) and node.body:
+            first = node.body[0]
+            if (
+                isinstance(first, ast.Expr)
+                and isinstance(first.value, ast.Constant)
+                and isinstance(first.value.value, str)
+            ):
+                # An emptied body keeps a placeholder so the tree stays a valid one.
+                node.body = node.body[1:] or [ast.Pass()]
+    return hashlib.sha256(b"ast:" + ast.dump(tree).encode("utf-8")).hexdigest()
+
+
 def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return code_sha256(path.read_bytes())
 
 
 def digest(target: Target, root: Path, tests: Sequence[str] | None = None) -> dict[str, Any]:
     """What a cached result was computed from: the module's and each selected test file's
-    SHA-256, the function filter, the tool and the pytest arguments."""
+    code hash (:func:`code_sha256`), the function filter, the tool and the pytest arguments."""
     tests = select_tests(target, root) if tests is None else tests
     return {
         "module": target.path,
-        "module_sha256": _sha256(root / target.path),
+        "module_code_sha256": _sha256(root / target.path),
         "functions": list(target.functions),
         "tests": {name: _sha256(root / name) for name in tests},
         "tool": f"{TOOL} {_tool_version()}",
@@ -252,7 +281,7 @@ def write_result(
 def _staleness(recorded: Mapping[str, Any], now: Mapping[str, Any]) -> str:
     """Empty when ``recorded`` matches ``now``; else what changed, in words."""
     problems = []
-    if recorded.get("module_sha256") != now["module_sha256"]:
+    if recorded.get("module_code_sha256") != now["module_code_sha256"]:
         problems.append(f"{now['module']} changed")
     old_tests: Mapping[str, str] = recorded.get("tests", {})
     new_tests: Mapping[str, str] = now["tests"]

@@ -3,7 +3,7 @@ SR-EVD-6).
 
 The campaign is too long for ``make test`` (``make mutation``: :mod:`evidence.mutation_run`,
 docs/findings/mutation.md). This test only reads the committed results in
-``safety/mutation/``, recomputes the SHA-256 of each module and of its selected test files, and
+``safety/mutation/``, recomputes the code hash of each module and of its selected test files, and
 attaches per module the mutants, killed, reviewed and pending equivalents, the score and
 whether the result is fresh or stale, with every surviving mutant and the equivalents list.
 

@@ -13,6 +13,7 @@ from evidence.mutation import (
     ModuleResult,
     MutantOutcome,
     Target,
+    code_sha256,
     describe,
     digest,
     left_out,
@@ -69,6 +70,28 @@ def test_the_key_names_only_the_changed_lines_and_survives_edits_elsewhere() -> 
     assert mutant_key("m.py", "f", before, before) == "m.py | f |  -> "
 
 
+@pytest.mark.requirement("SR-EVD-5", kind="example", code=CODE)
+def test_the_code_hash_ignores_documentation_and_sees_every_change_of_code() -> None:
+    base = code_sha256(
+        b'"""M."""\nclass C:\n    """C."""\n    def f(self, x):\n        return x < "a"\n'
+    )
+    same = (
+        b"# a comment\nclass C:\n\n    def f(self, x):  # why\n"
+        b'        """F, in metres."""\n        return (x < \'a\')\n'
+    )
+    assert code_sha256(same) == base
+    for changed in (
+        b'class C:\n    def f(self, x):\n        return x <= "a"\n',
+        b'class C:\n    def f(self, x):\n        return x < "b"\n',
+        b'class C:\n    def f(self, y):\n        return y < "a"\n',
+        b'class C:\n    def f(self, x):\n        "a"\n        "b"\n        return x < "a"\n',
+    ):
+        assert code_sha256(changed) != base, changed
+    # A body that was only a docstring is a pass; source that does not parse is its bytes.
+    assert code_sha256(b'def f():\n    """Doc."""\n') == code_sha256(b"def f():\n    pass\n")
+    assert code_sha256(b"def f(:\n") != code_sha256(b"def f( :\n")
+
+
 def _write_result(root: Path, target: Target, statuses: list[str]) -> None:
     mutants = [
         MutantOutcome("f", f"{target.path} | f | k{i}", status)  # type: ignore[arg-type]
@@ -99,7 +122,11 @@ def test_a_cached_result_is_stale_once_the_module_or_a_selected_test_changes(
         "pkg/sub/mod.py: 1 of 2 killed (50.0 %; 0 equivalent, 0 pending review, 1 survived, "
         "0 reached by no test) [fresh]"
     )
-    (tmp_path / "tests/test_plain.py").write_text("import pkg.sub.mod  # edited\n")
+    # Documentation is not code: a comment, a docstring and layout keep the result fresh.
+    (tmp_path / "tests/test_plain.py").write_text('"""Plain."""\nimport  pkg.sub.mod  # edited\n')
+    (tmp_path / "pkg/sub/mod.py").write_text('def f(x):\n    """Doc."""\n\n    return (x < 1)\n')
+    assert load_results(tmp_path, targets=[TARGET])[0].state == "fresh"
+    (tmp_path / "tests/test_plain.py").write_text("import pkg.sub.mod as m\n")
     (stale,) = load_results(tmp_path, targets=[TARGET])
     assert stale.state == "stale"
     assert stale.why == "changed tests: tests/test_plain.py"
