@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 from pipeline.classify.model import Classifier
-from pipeline.config import ClassifySection, SafecaseConfig, config_hash
+from pipeline.config import SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps
 from safety.availability import Comparison, run_oracle, run_ours
@@ -177,12 +177,6 @@ def failed_row(encounter: Encounter, error: str) -> CampaignRow:
     return CampaignRow(encounter, 0, {}, 0, (), float("inf"), 0.0, 0.0, {}, error=error)
 
 
-@functools.lru_cache(maxsize=2)
-def _classifier(section: ClassifySection) -> Classifier:
-    """The configured model, loaded (and hash-checked) once per worker process."""
-    return Classifier.from_config(section)
-
-
 def run_encounter(
     config: SafecaseConfig, encounter: Encounter, *, oracle: bool = False, shadow: bool = True
 ) -> CampaignRow:
@@ -200,7 +194,7 @@ def run_encounter(
         raise ValueError(f"unknown scenario {encounter.scenario!r}")
     if oracle and not shadow:
         raise ValueError("oracle=True needs the shadow oracle (shadow=True)")
-    model = _classifier(config.classify)
+    model = Classifier.from_config(config.classify)  # parsed once per worker thread
     sim = encounter_simulation(config, encounter)
     if shadow:
         summary, watcher = run_ours(config, sim, model)

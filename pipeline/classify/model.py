@@ -9,12 +9,17 @@ training data). Loading checks the file's SHA-256 against the expected one (the 
 :class:`ModelHashError`: the model in use is always the one whose hash the evidence and the
 audit log record (:attr:`Classifier.model_sha256`). Inference evaluates the trees in numpy
 (:mod:`pipeline.classify.trees`); XGBoost itself is only the oracle and the trainer.
+
+Every load reads and hashes the file; parsing it (about a second of CPU for the packaged model)
+is done once per thread and model hash, so the classifiers a thread makes share one parsed
+ensemble (it holds scratch buffers: use a classifier from the thread that made it).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +88,25 @@ class ModelHashError(ModelError):
     """The model file's SHA-256 differs from the expected one (SR-CLS-3)."""
 
 
+# Parsed ensembles of this thread by model SHA-256, oldest first; a few models at most (a test
+# session trains and loads small ones beside the packaged model).
+_PARSED = threading.local()
+_PARSED_PER_THREAD = 4
+
+
+def _parsed(data: bytes, sha256: str) -> TreeEnsemble:
+    """The ensemble of model file content ``data`` (whose SHA-256 ``sha256`` the caller has just
+    computed and verified), parsed once per thread."""
+    cache: dict[str, TreeEnsemble] = _PARSED.__dict__.setdefault("by_sha256", {})
+    ensemble = cache.get(sha256)
+    if ensemble is None:
+        ensemble = TreeEnsemble.from_json(data)
+        if len(cache) >= _PARSED_PER_THREAD:
+            del cache[next(iter(cache))]
+        cache[sha256] = ensemble
+    return ensemble
+
+
 def file_sha256(path: Path) -> str:
     """SHA-256 (hex) of a file's bytes."""
     return hashlib.sha256(path.read_bytes()).hexdigest()
@@ -145,7 +169,9 @@ class Classifier:
 
     ``model_path`` defaults to the packaged model; ``expected_sha256`` (hex) to the card's
     record. Raises :class:`ModelHashError` when the file's hash differs, :class:`ModelError`
-    when the file or its card is missing or inconsistent (feature names, class count).
+    when the file or its card is missing or inconsistent (feature names, class count). The
+    file is read and hashed on every load; the parsed trees are shared by the classifiers of
+    one thread (module docstring).
     """
 
     def __init__(self, model_path: Path | None = None, expected_sha256: str = "") -> None:
@@ -170,7 +196,7 @@ class Classifier:
                 f"{FEATURE_NAMES}"
             )
         try:
-            self.ensemble = TreeEnsemble.from_json(data)
+            self.ensemble = _parsed(data, self.model_sha256)
         except ModelFormatError as exc:
             raise ModelError(f"classifier model {path}: {exc}") from None
         self.class_names: tuple[str, ...] = tuple(str(c) for c in self.card["class_names"])

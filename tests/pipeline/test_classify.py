@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -113,6 +114,35 @@ def test_loading_verifies_hash_card_features_and_classes(tmp_path: Path) -> None
     )
     assert info["sha256"] == file_sha256(path)
     assert "error" in info
+
+
+@pytest.mark.requirement("SR-CLS-3", kind="example", code=["pipeline/classify/model.py"])
+def test_a_thread_parses_a_model_once_and_still_checks_its_hash_on_every_load(
+    tmp_path: Path,
+) -> None:
+    """Classifiers of one thread share the parsed trees of a model (keyed by the file's
+    SHA-256); another thread parses its own (scratch buffers); every load re-reads and
+    re-hashes the file, so a changed file is refused or, pinned to its new hash, parsed anew."""
+    folder = tmp_path / "m"
+    folder.mkdir()
+    path = _write(folder, _toy_model(2, 2), ("a", "b", "c"))
+    a, b = Classifier(path), Classifier(path)
+    assert a.ensemble is b.ensemble
+    other: list[Classifier] = []
+    worker = threading.Thread(target=lambda: other.append(Classifier(path)))
+    worker.start()
+    worker.join()
+    assert other[0].ensemble is not a.ensemble
+    x = np.random.default_rng(2).normal(size=(5, N_FEATURES))
+    assert np.array_equal(other[0].probabilities(x), a.probabilities(x))
+    pinned = a.model_sha256
+    changed = _toy_model(2, 2, seed=1)
+    path.write_bytes(changed)
+    with pytest.raises(ModelHashError):
+        Classifier(path, expected_sha256=pinned)
+    c = Classifier(path, expected_sha256=file_sha256(path))
+    assert c.ensemble is not a.ensemble
+    assert np.array_equal(c.ensemble.margins(x), TreeEnsemble.from_json(changed).margins(x))
 
 
 def test_classify_scores_confirmed_and_lost_tracks_only(tmp_path: Path) -> None:
