@@ -30,7 +30,12 @@ from safety.audit.log import anchor_path, canonical_json, record_hash
 from safety.audit.replay import replay
 from safety.audit.verify import AuditStatus, verify_log
 
-AUDIT = ["safety/audit/log.py", "safety/audit/verify.py"]
+AUDIT = [
+    "safety/audit/log.py",
+    "safety/audit/verify.py",
+    "safety/audit/records.py",
+    "safety/audit/anchor.py",
+]
 REPLAY = ["safety/audit/log.py", "safety/audit/replay.py", "safety/model/decision.py"]
 
 edits = st.builds(

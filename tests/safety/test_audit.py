@@ -31,7 +31,13 @@ from safety.audit.log import (
 from safety.audit.verify import AuditStatus, verify_log
 from safety.model.governor import Governor
 
-AUDIT = ["safety/audit/log.py", "safety/audit/verify.py", "evidence/cli/audit.py"]
+AUDIT = [
+    "safety/audit/log.py",
+    "safety/audit/verify.py",
+    "safety/audit/records.py",
+    "safety/audit/anchor.py",
+    "evidence/cli/audit.py",
+]
 CONFIG = default_config()
 
 

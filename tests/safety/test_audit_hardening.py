@@ -33,7 +33,13 @@ from safety.audit.replay import replay
 from safety.audit.verify import verify_log
 from safety.run import run_audited
 
-AUDIT = ["safety/audit/log.py", "safety/audit/verify.py", "evidence/cli/audit.py"]
+AUDIT = [
+    "safety/audit/log.py",
+    "safety/audit/verify.py",
+    "safety/audit/records.py",
+    "safety/audit/anchor.py",
+    "evidence/cli/audit.py",
+]
 KEYS = ["safety/audit/keys.py", "safety/audit/log.py", "safety/run.py"]
 CONFIG = default_config()
 
