@@ -37,7 +37,7 @@ from safety.model.readings import minimum, select
 from safety.run import run
 from safety.runtime import CycleInput, Runtime
 
-CAUTION = ["safety/model/caution.py", "safety/runtime.py"]
+CAUTION = ["safety/model/caution.py", "safety/runtime.py", "safety/cycle.py"]
 SCENARIO = ["pipeline/sources/sim/acoustic_scenarios.py", "safety/runtime.py", "safety/run.py"]
 
 

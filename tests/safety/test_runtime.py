@@ -11,7 +11,7 @@ import pytest
 from pipeline.classify.model import Classifier
 from pipeline.config import default_config, overridden
 from pipeline.static_map import StaticMap
-from pipeline.types import Action, Scan, ThermalDetections
+from pipeline.types import Action, RadarDetections, Scan, ThermalDetections
 from properties.cli_runner import run_safecase
 from safety.runtime import CycleInput, Levers, Runtime
 
@@ -178,3 +178,68 @@ def test_an_object_faster_than_the_domain_allows_stops_the_robot(classifier: Cla
     fast = _crossing_fast(Runtime(CONFIG, classifier=classifier))
     assert fast
     assert "above predict.max_object_speed_mps = 3.5" in fast[0]
+
+
+def _three_objects(stamp_s: float, seq: int) -> Scan:
+    """Three small objects 3 m away, ahead and 0.6 rad to either side."""
+    angles = np.linspace(-math.pi, math.pi, 1080, endpoint=False)
+    ranges = np.full(1080, np.inf)
+    for centre in (-0.6, 0.0, 0.6):
+        ranges[np.abs(angles - centre) < 0.06] = 3.0
+    return Scan(stamp_s, angles, ranges, seq=seq)
+
+
+def _three_of(sensor: str, stamp_s: float) -> dict[str, object]:
+    """Three fresh detections of ``sensor`` at the three objects ("" for none)."""
+    bearing = np.array([-0.6, 0.0, 0.6])
+    stamp = np.full(3, stamp_s)
+    if sensor == "thermal":
+        xy = 3.0 * np.cos(bearing), 3.0 * np.sin(bearing)
+        return {"thermal": ThermalDetections(stamp, *xy, np.full(3, 0.9))}
+    if sensor == "radar":
+        return {"radar": RadarDetections(stamp, np.full(3, 3.0), bearing, np.zeros(3))}
+    return {}
+
+
+@pytest.mark.requirement(
+    "SR-TIM-3",
+    kind="example",
+    code=["safety/runtime.py", "safety/cycle.py", "safety/model/monitors.py"],
+)
+@pytest.mark.parametrize(
+    ("cap", "sensor"),
+    [
+        ("cluster.max_clusters", ""),
+        ("track.max_detections", ""),
+        ("track.max_tracks", ""),
+        ("fusion.max_thermal", "thermal"),
+        ("fusion.max_radar", "radar"),
+        ("geometry.max_obstacles", ""),
+    ],
+)
+def test_a_cap_that_drops_something_stops_the_cycle_and_the_log_names_it(
+    classifier: Classifier, cap: str, sensor: str
+) -> None:
+    """Three objects against a cap of 1 (confirmed tracks after 5 scans): the cycle's
+    observation counts what that cap dropped (two objects; for the obstacle cap every envelope
+    row but one, a track may have two), no other cap drops anything, and the command is STOP
+    naming the cap and the count."""
+    section, key = cap.split(".")
+    config = overridden(CONFIG, {section: {key: 1}})
+    rt = Runtime(config, classifier=classifier)
+    for k in range(5):
+        stamp = 10.0 + 0.1 * k
+        inp = CycleInput.standing(
+            _three_objects(stamp, k), stamp + 0.1, config, charge_s=0.01, **_three_of(sensor, stamp)
+        )
+        out = rt.step(inp)
+    want = 2
+    if cap == "geometry.max_obstacles":
+        assert out.envelopes is not None
+        assert out.envelopes.n >= 3
+        want = out.envelopes.n - 1
+    dropped = dict(out.record.observation.over_cap)
+    assert dropped[cap] == want, dropped
+    assert all(n == 0 for name, n in dropped.items() if name != cap), dropped
+    assert out.command.action is Action.STOP
+    assert f"{cap} dropped {want}" in " ".join(out.command.reasons), out.command.reasons
