@@ -156,7 +156,7 @@ def test_a_row_seen_this_cycle_is_its_cluster_grown_by_its_largest_position_sigm
 def test_a_body_from_the_cycle_s_batch_equals_its_own_batch() -> None:
     """The cycle grows every asked-for hull in one batch; what each user takes from it (any
     subset, any order) is bit for bit the batch of just those rows: vertices, padding, counts,
-    slack."""
+    slack; an empty take is an empty batch."""
     _, clusters = _scan()
     xy = np.array([[0.0, 0.0], [1.0, 0.5], [2.0, -1.0], [3.0, 0.0]])
     tracks = _tracks([3, 4, 7, 9], xy, [0, 1, 1, -1], [0.05, 0.3, 0.2, 0.1])
@@ -164,8 +164,8 @@ def test_a_body_from_the_cycle_s_batch_equals_its_own_batch() -> None:
     seen = SeenHulls.of(np.ones(4, dtype=bool), pred, tracks, clusters, POSE, PS)
     assert seen.column.tolist() == [-1, 0, 1, 2]
     row = np.searchsorted(tracks.track_id, pred.track_id)
-    for rows in ([1], [2], [3], [3, 1], [1, 2, 3], [2, 3]):
-        idx = np.array(rows)
+    for rows in ([1], [2], [3], [3, 1], [1, 2, 3], [2, 3], []):
+        idx = np.array(rows, dtype=np.int64)
         det = tracks.detection_index[row[idx]]
         sigma = K * largest_std(tracks.covariance[row[idx], :2, :2])
         alone = grown_polygons(cluster_hulls(clusters, det, POSE), sigma, SIDES)
