@@ -29,7 +29,7 @@ from pipeline.types import (
 )
 from safety.geometry.envelopes import EnvelopeBuilder, grown_polygons
 from safety.geometry.path import PathDistances
-from safety.geometry.polygons import convex_polygons, transform_polygons
+from safety.geometry.polygons import convex_polygons, no_polygons, transform_polygons
 from safety.model.decision import GovernorInputs
 from safety.model.monitors import MonitorVerdict
 from safety.model.stopping import StoppingParams
@@ -106,7 +106,7 @@ def pedestrian_regions(
     speed over the detection's age) and envelopes over the horizon (robot frame)."""
     n = fused.n_pedestrians
     if n == 0:
-        empty = convex_polygons(np.zeros((0, 3, 2)))
+        empty = no_polygons()
         return empty, empty
     p = params
     age = np.maximum(now_s - fused.pedestrian_stamp_s, 0.0)
@@ -115,7 +115,8 @@ def pedestrian_regions(
     centre = np.stack([fused.pedestrian_x_m, fused.pedestrian_y_m], axis=1)[:, None, :]
     sides = config.predict.disc_sides
     zones = grown_polygons(centre, radius, sides)
-    margin, _ = envelopes.margins(fused.pedestrian_confidence, np.zeros(n, dtype=bool))
+    # A thermal-only pedestrian is never a forklift near reversal.
+    margin, _ = envelopes.margins(fused.pedestrian_confidence, False)
     reach = radius + walk * config.predict.horizon_s + margin
     env = grown_polygons(centre, reach, sides)
     env = transform_polygons(env, *inverse(robot_now))
@@ -158,13 +159,9 @@ def governor_rows(
     if dist.n_points_on_path:
         groups.append(([dist.point_free_m], [loose_closing], [0.0], [False]))
 
-    def column(k: int, dtype: type) -> npt.NDArray[Any]:
-        return np.concatenate([np.asarray(g[k], dtype=dtype) for g in groups])
+    # Every group's column already has its dtype (float64, or bool for the flags), so the
+    # concatenations keep it.
+    def column(k: int) -> npt.NDArray[Any]:
+        return np.concatenate([g[k] for g in groups])
 
-    return GovernorInputs(
-        now_s,
-        column(0, np.float64),
-        column(1, np.float64),
-        np.clip(column(2, np.float64), 0.0, 1.0),
-        column(3, np.bool_),
-    )
+    return GovernorInputs(now_s, column(0), column(1), np.clip(column(2), 0.0, 1.0), column(3))

@@ -44,7 +44,7 @@ from pipeline.types import (
     PredictionMode,
     Predictions,
 )
-from safety.geometry.polygons import MAX_COORD_M, convex_polygons, transform_polygons
+from safety.geometry.polygons import MAX_COORD_M, convex_polygons, no_polygons, transform_polygons
 from safety.model.stopping import StoppingParams, person_floor_mps, tier_value
 
 __all__ = ["ROUNDING_M", "EnvelopeBuilder", "body_polygons", "grown_polygons"]
@@ -67,7 +67,7 @@ def grown_polygons(reach_xy_m: FloatArray, radius_m: FloatArray, sides: int) -> 
     one point (:func:`_disc_rows`) is read off without the hull, with the same arrays."""
     n = reach_xy_m.shape[0]
     if n == 0:
-        return convex_polygons(np.zeros((0, 3, 2)))
+        return no_polygons()
     radius = np.asarray(radius_m, dtype=np.float64) + ROUNDING_M
     discs = disc_points(np.zeros(n), np.zeros(n), radius, sides)
     points = minkowski(reach_xy_m, discs)

@@ -42,6 +42,7 @@ __all__ = [
     "Workspace",
     "convex_hull_batch",
     "convex_polygons",
+    "no_polygons",
     "polygon_bounds",
     "polygons_from_hull",
     "transform_polygons",
@@ -334,12 +335,17 @@ def convex_polygons(
             "points"
         )
     if n == 0:
-        return ConvexPolygons(np.zeros((2, 3, 0)), np.zeros(0, np.int64), np.zeros(0))
+        return no_polygons()
     valid = np.arange(k)[None, :] < count[:, None]
     px = np.where(valid, stacked[:, :, 0], stacked[:, :1, 0])
     py = np.where(valid, stacked[:, :, 1], stacked[:, :1, 1])
     order, hull_counts, slack = convex_hull_batch(px, py, what="polygon", workspace=workspace)
     return polygons_from_hull(px, py, order, hull_counts, slack)
+
+
+def no_polygons() -> ConvexPolygons:
+    """The empty batch (N = 0), padded to the least width a polygon has (K = 3)."""
+    return ConvexPolygons(np.zeros((2, 3, 0)), np.zeros(0, np.int64), np.zeros(0))
 
 
 def polygons_from_hull(

@@ -147,19 +147,22 @@ def _disc_of(
 
 
 @pytest.mark.requirement("SR-FUS-3", kind="example", code=OBSTACLES)
-def test_a_pedestrian_s_disc_grows_with_the_detection_s_age_and_never_shrinks() -> None:
+@pytest.mark.parametrize("conf", [0.2, 0.95])
+def test_a_pedestrian_s_disc_grows_with_the_detection_s_age_and_never_shrinks(conf: float) -> None:
     """Detections 0.3 s old, fresh and stamped 0.2 s in the future: discs of the person's radius
     plus the walking speed times the age (0 for the future one); envelopes over the horizon
-    with the margin of their confidence, in the frame of the robot at ``robot``."""
+    with the margin of their confidence (a low one and a high one, whose tier's margin is below
+    the near-reversal tier's), in the frame of the robot at ``robot``."""
     robot: Pose = (1.0, -2.0, 0.7)
     now = 100.0
     person, walk = CONFIG.runtime.person_radius_m, float(PARAMS.person_speed_mps)
-    conf = 0.2
     fused = _fused([now - 0.3, now, now + 0.2], [(5.0, 2.0), (-3.0, 1.0), (0.0, 7.0)], conf)
     zones, env = pedestrian_regions(now, fused, robot, CONFIG, PARAMS, BUILDER)
     assert zones.n == env.n == 3
     margin = float(BUILDER.margins(np.array([conf]), np.array([False]))[0][0])
     assert margin > 0.0
+    if conf > 0.9:
+        assert margin < float(BUILDER.margins(np.array([conf]), np.array([True]))[0][0])
     for j, (age, xy) in enumerate(((0.3, (5.0, 2.0)), (0.0, (-3.0, 1.0)), (0.0, (0.0, 7.0)))):
         radius = person + walk * age
         _disc_of(zones, j, xy, radius)
@@ -233,10 +236,13 @@ def test_the_governor_gets_one_row_per_zone_pedestrian_path_end_and_loose_point(
         confidence.append(0.0)
         flags.append(False)
     assert rows.stamp_s == 7.0
+    assert rows.free_distance_m.dtype == np.float64
     assert rows.free_distance_m.tolist() == free
     assert rows.closing_speed_mps is not None
+    assert rows.closing_speed_mps.dtype == np.float64
     assert rows.closing_speed_mps.tolist() == speed
     assert rows.confidence is not None
+    assert rows.confidence.dtype == np.float64
     assert rows.confidence.tolist() == confidence
     assert rows.near_reversal is not None
     assert rows.near_reversal.dtype == np.bool_

@@ -243,3 +243,30 @@ def test_a_cap_that_drops_something_stops_the_cycle_and_the_log_names_it(
     assert all(n == 0 for name, n in dropped.items() if name != cap), dropped
     assert out.command.action is Action.STOP
     assert f"{cap} dropped {want}" in " ".join(out.command.reasons), out.command.reasons
+
+
+@pytest.mark.requirement(
+    "SR-TRK-1", kind="example", code=["safety/runtime.py", "safety/cycle.py", "pipeline/points.py"]
+)
+def test_the_record_counts_the_dropped_beams_and_what_the_tracker_did(
+    classifier: Classifier,
+) -> None:
+    """A scan of the three objects with 7 NaN ranges, 4 below the minimum range and 2 beyond
+    the maximum: the cycle's record counts each kind of dropped beam and the tracker's
+    detections and births."""
+    scan = _three_objects(10.0, 0)
+    ranges = scan.ranges_m.copy()
+    ranges[500:507] = np.nan
+    ranges[600:604] = 0.5 * CONFIG.scan.min_range_m
+    ranges[700:702] = 2.0 * CONFIG.scan.max_range_m
+    scan = Scan(scan.stamp_s, scan.angles_rad, ranges, seq=0)
+    out = Runtime(CONFIG, classifier=classifier).step(
+        CycleInput.standing(scan, 10.1, CONFIG, charge_s=0.01)
+    )
+    drops = out.record.inputs["drops"]
+    n_inf = int(np.count_nonzero(np.isinf(ranges)))
+    assert (drops["n_beams"], drops["n_nan"], drops["n_inf"]) == (1080, 7, n_inf)
+    assert (drops["n_below_min"], drops["n_above_max"]) == (4, 2)
+    assert drops["n_valid"] == 1080 - 7 - n_inf - 4 - 2
+    tracker = out.record.inputs["tracker"]
+    assert (tracker["n_detections"], tracker["n_born"], tracker["n_live"]) == (3, 3, 3)
