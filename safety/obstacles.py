@@ -29,7 +29,7 @@ from pipeline.types import (
 )
 from safety.geometry.envelopes import EnvelopeBuilder, grown_polygons
 from safety.geometry.path import PathDistances
-from safety.geometry.polygons import convex_polygons, no_polygons, transform_polygons
+from safety.geometry.polygons import convex_polygons, transform_polygons
 from safety.model.decision import GovernorInputs
 from safety.model.monitors import MonitorVerdict
 from safety.model.stopping import StoppingParams
@@ -104,10 +104,6 @@ def pedestrian_regions(
 ) -> tuple[ConvexPolygons, ConvexPolygons]:
     """Thermal-only pedestrians: bodies now (tracking frame; a disc grown by the walking
     speed over the detection's age) and envelopes over the horizon (robot frame)."""
-    n = fused.n_pedestrians
-    if n == 0:
-        empty = no_polygons()
-        return empty, empty
     p = params
     age = np.maximum(now_s - fused.pedestrian_stamp_s, 0.0)
     walk = float(p.person_speed_mps)

@@ -34,6 +34,7 @@ from pipeline.types import (
 from properties.fusion_cases import make_tracks
 from safety.geometry.envelopes import ROUNDING_M, EnvelopeBuilder, grown_polygons
 from safety.geometry.path import PathDistances
+from safety.geometry.polygons import no_polygons
 from safety.model.stopping import StoppingParams
 from safety.obstacles import (
     OBJECT_SPEED_WATCH,
@@ -176,8 +177,9 @@ def test_no_pedestrian_gives_no_region() -> None:
     zones, env = pedestrian_regions(
         5.0, _fused([], [], 0.2), (0.0, 0.0, 0.0), CONFIG, PARAMS, BUILDER
     )
-    assert zones.n == 0
-    assert env.n == 0
+    for regions in (zones, env):
+        assert regions.n == 0
+        np.testing.assert_array_equal(regions.vertices_m, no_polygons().vertices_m)
 
 
 def _envelopes_for(n: int) -> tuple[FloatArray, FloatArray, BoolArray]:

@@ -20,7 +20,12 @@ from safety.audit.replay import replay
 from safety.run import run_audited
 from safety.runtime import CycleInput, Runtime
 
-CODE = ["safety/model/second_scanner.py", "safety/runtime.py", "pipeline/scanners.py"]
+CODE = [
+    "safety/model/second_scanner.py",
+    "safety/runtime.py",
+    "safety/cycle.py",
+    "pipeline/scanners.py",
+]
 CONFIG = overridden(default_config(), {"scan2": {"enabled": True}})
 
 

@@ -1,0 +1,50 @@
+"""The runtime reads what its input carries besides the scan: the scanner link's health
+(SR-DRV-3)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.classify.model import Classifier
+from pipeline.config import default_config
+from pipeline.types import Action, DriverHealth, DriverState, Scan
+from safety.runtime import CycleInput, Runtime
+
+CONFIG = default_config()
+CODE = ["safety/runtime.py", "safety/cycle.py", "safety/model/monitors.py"]
+
+
+@pytest.fixture(scope="module")
+def classifier() -> Classifier:
+    """The committed model, loaded once."""
+    return Classifier.from_config(CONFIG.classify)
+
+
+def _empty_scan(stamp_s: float) -> Scan:
+    angles = np.linspace(-math.pi, math.pi, 1080, endpoint=False)
+    return Scan(stamp_s, angles, np.full(1080, np.inf))
+
+
+@pytest.mark.requirement("SR-DRV-3", kind="example", code=CODE)
+@pytest.mark.parametrize("state", list(DriverState))
+def test_a_scanner_link_that_is_not_fresh_stops_the_robot_and_says_why(
+    classifier: Classifier, state: DriverState
+) -> None:
+    """An empty world with the link in each state: OK and DEGRADED proceed at full speed;
+    every other state commands STOP naming the state, the time since the last valid frame and
+    the driver's last error, and the record's observation holds all three."""
+    health = DriverHealth(state, 10.05, 0.75, last_error="read timeout")
+    inp = CycleInput.standing(_empty_scan(10.0), 10.1, CONFIG, charge_s=0.01, driver=health)
+    out = Runtime(CONFIG, classifier=classifier).step(inp)
+    observation = out.record.observation
+    assert (observation.driver_state, observation.driver_age_s) == (state.value, 0.75)
+    assert observation.driver_error == "read timeout"
+    if state in (DriverState.OK, DriverState.DEGRADED):
+        assert out.command.action is Action.PROCEED
+        return
+    assert out.command.action is Action.STOP
+    want = f"scanner link {state.value}: no valid frame for 0.750 s, last error: read timeout"
+    assert any(want in reason for reason in out.command.reasons), out.command.reasons
