@@ -49,6 +49,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/geometry/swept.py",
     "safety/closing.py",
     "safety/bodies.py",
+    "safety/obstacles.py",
     "safety/nav2/geometry.py",
 )
 
