@@ -91,15 +91,14 @@ class CycleInput:
         return cls(scan=scan, now_s=now_s, robot_pose=(0.0, 0.0, 0.0), path=path, **extra)
 
     def frame(self) -> Frame:
-        """What the perception chain reads of this input (the link's health is not among it:
-        the monitors read ``driver`` directly)."""
+        """What the perception chain reads of this input (the link's health and the acoustic
+        alert are not among it: the runtime reads ``driver`` and ``acoustic`` directly)."""
         return Frame(
             self.scan,
             self.now_s,
             pose=self.robot_pose,
             thermal=self.thermal,
             radar=self.radar,
-            acoustic=self.acoustic,
             second=self.second,
             twist=self.twist,
         )
