@@ -50,6 +50,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/closing.py",
     "safety/bodies.py",
     "safety/obstacles.py",
+    "safety/cycle.py",
     "safety/nav2/geometry.py",
 )
 
