@@ -70,7 +70,8 @@ def _decimal(value: Fraction) -> str:
     scaled = abs(value) * 10**digits
     text = str(scaled.numerator // scaled.denominator).rjust(digits + 1, "0")
     whole, fraction = text[: len(text) - digits], text[len(text) - digits :]
-    return ("-" if value < 0 else "") + whole + "." + (fraction.rstrip("0") or "0")
+    # The least digit count that makes the value whole leaves no trailing zero to strip.
+    return ("-" if value < 0 else "") + whole + "." + (fraction or "0")
 
 
 def _proved_speed(model: Model, x_front: Fraction, half_width: Fraction) -> Fraction | None:

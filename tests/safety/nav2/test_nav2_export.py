@@ -10,7 +10,7 @@ import pytest
 from pipeline.config import default_config, load_config
 from safety.model.stopping import ClosingClass
 from safety.nav2 import Verdict, check
-from safety.nav2.export import LATERAL_MARGIN_M, export_bands, export_yaml
+from safety.nav2.export import LATERAL_MARGIN_M, _decimal, export_bands, export_yaml
 from safety.nav2.params import parse_params
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -48,3 +48,26 @@ def test_export_then_check_proves_every_band(name: str, closing: ClosingClass) -
     report = check(parse_params(text), config, closing=closing)
     assert report.verdict is Verdict.PROVED
     assert all(f.verdict is Verdict.PROVED for f in report.findings)
+
+
+@pytest.mark.requirement("SR-NAV-3", kind="example", code=CODE)
+def test_a_value_is_written_as_its_exact_decimal() -> None:
+    """Every value in the exported file is written in full: sign, whole part, the fewest
+    fraction digits that are exact (at least one), up to 30; a value with no such decimal is
+    refused naming it."""
+    cases = {
+        Fraction(0): "0.0",
+        Fraction(3): "3.0",
+        Fraction(120): "120.0",
+        Fraction(1, 8): "0.125",
+        Fraction(-1, 2): "-0.5",
+        Fraction(-5, 4): "-1.25",
+        Fraction(1005, 100): "10.05",
+        Fraction(1, 10**30): "0." + "0" * 29 + "1",
+    }
+    for value, text in cases.items():
+        assert _decimal(value) == text, value
+        assert Fraction(text) == value
+    for value in (Fraction(1, 10**31), Fraction(1, 3)):
+        with pytest.raises(ValueError, match=f"^{value} has no short decimal form$"):
+            _decimal(value)
