@@ -25,14 +25,13 @@ from fractions import Fraction
 
 from pipeline.config import SafecaseConfig, config_hash
 from safety.model.stopping import ClosingClass, Tier
-from safety.nav2.geometry import axis_depth_m
-from safety.nav2.obligations import Coverage, Model, needed_m, safe_speed
+from safety.nav2.obligations import Model, coverage, needed_m, safe_speed
 from safety.nav2.params import Nav2Params, Vertex, parse_params
 from safety.nav2.reader import nearest_float32
 from safety.nav2.solver import Verdict
 from safety.nav2.verdicts import build_model, check
 
-__all__ = ["LATERAL_MARGIN_M", "Band", "export_bands", "export_yaml"]
+__all__ = ["LATERAL_MARGIN_M", "Band", "export_bands", "export_yaml", "zone_vertices"]
 
 # Each band's zone is this much wider than the footprint on each side [m], so the footprint's
 # sides stay inside it after Nav2 rounds the points to single precision.
@@ -40,6 +39,16 @@ LATERAL_MARGIN_M = Fraction(1, 100)
 # Band edges [m/s] and the top band's depth [m] are rounded to this (down and up).
 _STEP = Fraction(1, 10**5)
 _NAME = "VelocityPolygonStop"
+# A stop zone ahead of the footprint: it is met travelling forward.
+_TRAVEL = "forward"
+
+
+def zone_vertices(x_front_m: Fraction, half_width_m: Fraction) -> tuple[Vertex, ...]:
+    """The rectangle from the base frame's origin to ``x_front_m`` ahead [m], ``half_width_m``
+    to each side [m], as Nav2 reads it (each coordinate the nearest single-precision float)."""
+    x, y = nearest_float32(x_front_m), nearest_float32(half_width_m)
+    zero = Fraction(0)
+    return ((x, y), (x, -y), (zero, -y), (zero, y))
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,10 +63,8 @@ class Band:
     why: str
 
     def vertices(self) -> tuple[Vertex, ...]:
-        """The rectangle from the base frame's origin to the front, as Nav2 reads it."""
-        x, y = nearest_float32(self.x_front_m), nearest_float32(self.half_width_m)
-        zero = Fraction(0)
-        return ((x, y), (x, -y), (zero, -y), (zero, y))
+        """The band's zone as Nav2 reads it (:func:`zone_vertices`)."""
+        return zone_vertices(self.x_front_m, self.half_width_m)
 
 
 def _decimal(value: Fraction) -> str:
@@ -75,11 +82,11 @@ def _decimal(value: Fraction) -> str:
 
 
 def _proved_speed(model: Model, x_front: Fraction, half_width: Fraction) -> Fraction | None:
-    """Largest proved speed (less one step, so Nav2's double edge stays inside) of a zone."""
-    probe = Band("probe", Fraction(0), Fraction(0), x_front, half_width, "")
-    depth = axis_depth_m(probe.vertices(), model.footprint, "forward")
-    speed, _ = safe_speed(model, Coverage("depth", depth), "forward", "export", _STEP)
-    return None if speed is None or speed < _STEP else speed - _STEP
+    """Largest proved speed (less one step, so Nav2's double edge stays inside) of a zone
+    [m/s]; None when no speed above standstill is proved."""
+    zone = coverage(zone_vertices(x_front, half_width), None, model.footprint, _TRAVEL)
+    speed, _ = safe_speed(model, zone, _TRAVEL, _NAME, _STEP)
+    return None if speed is None or speed <= _STEP else speed - _STEP
 
 
 def export_bands(
@@ -105,8 +112,12 @@ def export_bands(
         staircase.append((speed, x_front, why))
     needed = needed_m(model, top)
     assert needed is not None
-    depth = Fraction(math.ceil((needed + _STEP / 10) / _STEP)) * _STEP
-    while (_proved_speed(model, front + depth, half_width) or Fraction(0)) < top:
+    # The shallowest whole step at least the separation needed that is proved at top speed.
+    depth = Fraction(math.ceil(needed / _STEP)) * _STEP
+    while True:
+        proved = _proved_speed(model, front + depth, half_width)
+        if proved is not None and proved >= top:
+            break
         depth += _STEP
     staircase.append((top, front + depth, f"the maximum speed: separation {float(needed):.6g} m"))
     bands, low = [], Fraction(0)
@@ -184,7 +195,8 @@ def _yaml(config: SafecaseConfig, bands: tuple[Band, ...], closing: ClosingClass
 def export_yaml(config: SafecaseConfig, closing: ClosingClass = ClosingClass.STATIC) -> str:
     """The collision_monitor parameter file, checked: every zone of it is PROVED (SR-NAV-3)."""
     text = _yaml(config, export_bands(config, closing), closing)
-    report = check(parse_params(text, "export"), config, latency="nav2", closing=closing)
+    # check's default data age is Nav2's own: the file's source_timeout.
+    report = check(parse_params(text, "export"), config, closing=closing)
     if report.verdict is not Verdict.PROVED:
         failed = [f.label for f in report.findings if f.verdict is not Verdict.PROVED]
         raise RuntimeError(f"nav2 export: the exported zones are not all proved: {failed}")
