@@ -54,7 +54,8 @@ class PathAhead:
 
     def __post_init__(self) -> None:
         arrays = [frozen_array(a) for a in (self.arc_m, self.x_m, self.y_m, self.theta_rad)]
-        shape = arrays[0].shape
+        arc, x, y, theta = arrays
+        shape = arc.shape
         if len(shape) != 1 or shape[0] < 2 or any(a.shape != shape for a in arrays):
             raise GeometryError(
                 "PathAhead: arc_m, x_m, y_m, theta_rad must be 1-D arrays of one length >= 2, "
@@ -62,10 +63,12 @@ class PathAhead:
             )
         if not all(np.isfinite(a).all() for a in arrays):
             raise NonFiniteGeometryError("PathAhead: every pose and arc length must be finite")
-        if arrays[0][0] != 0.0 or np.any(np.diff(arrays[0]) <= 0.0):
+        if arc[0] != 0.0 or np.any(np.diff(arc) <= 0.0):
             raise GeometryError("PathAhead: arc_m must start at 0 and increase strictly")
-        for name, value in zip(("arc_m", "x_m", "y_m", "theta_rad"), arrays, strict=True):
-            object.__setattr__(self, name, value)
+        object.__setattr__(self, "arc_m", arc)
+        object.__setattr__(self, "x_m", x)
+        object.__setattr__(self, "y_m", y)
+        object.__setattr__(self, "theta_rad", theta)
 
     @property
     def length_m(self) -> float:
@@ -113,8 +116,9 @@ class PathAhead:
             length = step_m
         n = max(math.ceil(length / step_m - 1e-9), 1)
         arc = np.minimum(np.arange(n + 1) * step_m, length)
-        s = np.clip(start + arc, 0.0, cum[-1])
-        k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, cum.size - 2)
+        # start >= 0 and arc >= 0, so s >= cum[0] = 0 and the segment index is at least 0.
+        s = np.minimum(start + arc, cum[-1])
+        k = np.minimum(np.searchsorted(cum, s, side="right") - 1, cum.size - 2)
         d = pts[k + 1] - pts[k]
         frac = (s - cum[k]) / np.where(seg[k] > 0, seg[k], 1.0)
         return cls(
@@ -172,20 +176,19 @@ class PathClearance:
         x0, y0, th = path.x_m[:-1], path.y_m[:-1], path.theta_rad[:-1]
         hl, hw = 0.5 * self.length_m, 0.5 * self.width_m
         # Rear right, front right, front left, rear left: counter-clockwise.
-        along = np.stack(
-            [-hl + 0 * x0, hl + np.diff(path.arc_m), hl + np.diff(path.arc_m), -hl + 0 * x0]
-        )
+        rear, front = np.full_like(x0, -hl), hl + np.diff(path.arc_m)
+        along = np.stack([rear, front, front, rear])
         across = np.array([-hw, -hw, hw, hw])[:, None]
         verts = np.empty((2, _DISC_SIDES, n))
         verts[0, :4], verts[1, :4] = to_parent((x0, y0, th), along, across)
         verts[:, 4:] = verts[:, :1]
-        counts = np.full(n, 4, dtype=np.int64)
+        counts = np.full(n, 4)
         corner = self._corners(path)
         if corner.any():
             disc = disc_points(x0[corner], y0[corner], self._pivot_radii(path)[corner], _DISC_SIDES)
             verts[:, :, corner] = disc.transpose(2, 1, 0)
             counts[corner] = _DISC_SIDES
-        magnitude = np.abs(verts).max(axis=(0, 1)) if n else np.zeros(0)
+        magnitude = np.abs(verts).max(axis=(0, 1))  # n >= 1: a path has two samples or more
         return ConvexPolygons(vertices_m=verts, counts=counts, slack_m=16.0 * U * (1.0 + magnitude))
 
     def _corners(self, path: PathAhead) -> BoolArray:
@@ -213,11 +216,10 @@ class PathClearance:
         pieces = self.pieces(path)
         if zones.n:
             hits = self.sat.overlap_all(pieces, zones)  # (S - 1, Z)
-            zone_hit = np.asarray(hits.any(axis=0), dtype=bool)
+            zone_hit = np.asarray(hits.any(axis=0))
             zone_free[zone_hit] = arc[hits.argmax(axis=0)[zone_hit]]
         point_free, on_path = lookahead, 0
-        px = np.asarray(points_x_m, dtype=np.float64)
-        py = np.asarray(points_y_m, dtype=np.float64)
+        px, py = points_x_m, points_y_m
         if px.size:
             # Only points in the pieces' bounding box can lie on the path (most of a scan).
             v = pieces.vertices_m
@@ -245,7 +247,7 @@ class PathClearance:
             return np.zeros(0)
         pose = (float(path.x_m[0]), float(path.y_m[0]), float(path.theta_rad[0]))
         placed = _placed(self.footprint, *pose)
-        robot = placed.take(np.zeros(bodies.n, dtype=np.int64))
+        robot = placed.take([0] * bodies.n)
         distance: FloatArray = contact_pairs(robot, bodies).distance_m
         return distance
 
