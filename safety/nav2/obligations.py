@@ -271,9 +271,10 @@ def safe_speed(
     no speed is covered (not even standstill, or an unbounded data age).
     """
     standstill = model.worst_separation_m(Fraction(0))
-    worst = model.reaction.worst_s
-    if standstill is None or worst is None or not cov.covers(standstill):
+    if standstill is None or not cov.covers(standstill):
         return None, None
+    worst = model.reaction.worst_s
+    assert worst is not None  # the separation is bounded only when the reaction time is
     s = model.stopping
     closed = safe_speed_mps(
         cov.effective_m(),
