@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import sys
 from fractions import Fraction
 from pathlib import Path
+from types import FrameType
 
 import pytest
 
+from safety.nav2 import reader
 from safety.nav2.params import MAX_BANDS, load_params, parse_params
 from safety.nav2.reader import Nav2ParamsError
 
@@ -25,22 +28,39 @@ def _zone(body: str) -> str:
 
 
 @pytest.mark.requirement("SR-NAV-4", kind="example", code=CODE)
-def test_a_file_over_four_mebibytes_is_refused_before_it_is_parsed(tmp_path: Path) -> None:
-    path = tmp_path / "huge.yaml"
+def test_a_file_over_the_size_limit_is_refused_before_it_is_parsed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The limit is 4 MiB; lowered to the test file's size plus one byte here, so the check of
+    both sides of it does not parse megabytes of YAML."""
+    assert reader._MAX_FILE_BYTES == 4 * 1024 * 1024
+    path = tmp_path / "big.yaml"
     text = _zone(STOP)
-    path.write_text(text + "#" * (4 * 1024 * 1024 - len(text) + 1))
+    monkeypatch.setattr(reader, "_MAX_FILE_BYTES", len(text) + 1)
+    path.write_text(text + "#")
+    assert load_params(path).zones[0].name == "Stop"
+    path.write_text(text + "##")
     with pytest.raises(Nav2ParamsError) as caught:
         load_params(path)
-    assert str(caught.value) == f"{path}: {4 * 1024 * 1024 + 1} bytes: allowed: at most 4194304"
-    path.write_text(text + "#" * (4 * 1024 * 1024 - len(text)))
-    assert load_params(path).zones[0].name == "Stop"
+    assert str(caught.value) == f"{path}: {len(text) + 2} bytes: allowed: at most {len(text) + 1}"
 
 
 @pytest.mark.requirement("SR-NAV-4", kind="example", code=CODE)
 def test_nesting_too_deep_for_the_parser_is_one_line_naming_the_file() -> None:
-    text = "collision_monitor: " + "[" * 5000 + "]" * 5000 + "\n"
-    with pytest.raises(Nav2ParamsError) as caught:
-        parse_params(text, "deep.yaml")
+    """600 nested lists under a recursion limit 300 frames above this one: the parser runs out
+    of stack on every Python version, and the error is one line."""
+    depth = 0
+    frame: FrameType | None = sys._getframe()
+    while frame is not None:
+        depth, frame = depth + 1, frame.f_back
+    text = "collision_monitor: " + "[" * 600 + "]" * 600 + "\n"
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(depth + 300)
+    try:
+        with pytest.raises(Nav2ParamsError) as caught:
+            parse_params(text, "deep.yaml")
+    finally:
+        sys.setrecursionlimit(limit)
     assert str(caught.value) == "deep.yaml: not valid YAML: RecursionError"
 
 
