@@ -62,10 +62,6 @@ class Band:
     half_width_m: Fraction
     why: str
 
-    def vertices(self) -> tuple[Vertex, ...]:
-        """The band's zone as Nav2 reads it (:func:`zone_vertices`)."""
-        return zone_vertices(self.x_front_m, self.half_width_m)
-
 
 def _decimal(value: Fraction) -> str:
     """A terminating decimal in full (every value written here has one)."""
