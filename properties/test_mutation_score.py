@@ -45,6 +45,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/geometry/contact.py",
     "safety/geometry/costmap.py",
     "safety/geometry/envelopes.py",
+    "safety/geometry/path.py",
     "safety/geometry/sat.py",
     "safety/geometry/swept.py",
     "safety/closing.py",
