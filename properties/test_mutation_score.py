@@ -53,6 +53,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/obstacles.py",
     "safety/cycle.py",
     "safety/nav2/geometry.py",
+    "safety/nav2/export.py",
 )
 
 
