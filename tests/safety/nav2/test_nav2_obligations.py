@@ -25,6 +25,7 @@ from safety.nav2.obligations import (
     Model,
     Reaction,
     approach_interval_mps,
+    approach_obligation,
     coverage,
     safe_speed,
     sqrt_high,
@@ -270,3 +271,24 @@ def test_without_acceleration_a_still_robot_is_covered_by_any_approach_time() ->
     assert low == 0.0
     assert high == pytest.approx(0.55, abs=1e-12)
     _check_interval(model, Fraction("0.5"), low, high)
+
+
+@pytest.mark.requirement("SR-NAV-2", kind="example", code=CODE)
+def test_the_approach_claim_is_named_and_holds_exactly_inside_its_interval() -> None:
+    """Keeping 2 s to collision covers the separation between the interval's roots (0.017 and
+    4.0 m/s): the claim over a band inside them is proved, one reaching past either refuted."""
+    model = _model()
+    before_s = Fraction(2)
+    interval = approach_interval_mps(model, before_s)
+    assert interval is not None
+    low, high = (Fraction(v).limit_denominator(10**6) for v in interval)
+    inside = approach_obligation(model, before_s, high - MILLI, "Approach", low=low + MILLI)
+    assert inside.name == "Approach"
+    outcome = decide(inside)
+    assert outcome.verdict is Verdict.PROVED
+    assert "; safecase nav2 obligation: Approach\n" in outcome.smtlib
+    assert "keeping time_before_collision 2 s (distance >= v * 2)" in outcome.smtlib
+    beyond = approach_obligation(model, before_s, high + MILLI, "Approach", low=low + MILLI)
+    assert decide(beyond).verdict is Verdict.REFUTED
+    below = approach_obligation(model, before_s, high - MILLI, "Approach", low=low - MILLI)
+    assert decide(below).verdict is Verdict.REFUTED
