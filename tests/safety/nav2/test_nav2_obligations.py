@@ -10,6 +10,7 @@ against ``v * before``. Each is checked here against the exact worst-case separa
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from fractions import Fraction
 
 import pytest
@@ -137,6 +138,7 @@ def test_a_circle_covers_what_is_left_beyond_the_footprint() -> None:
             assert corner * corner >= corner_sq > (corner - NANO) ** 2
         ahead = coverage(None, radius, footprint, "forward")
         assert ahead.kind == "circle_axis"
+        assert ahead.radius_m == radius
         reach = ahead.depth_m + Fraction("0.45")
         if radius * radius - Fraction("0.09") < Fraction("0.45") ** 2:
             assert ahead.depth_m == 0
@@ -292,3 +294,42 @@ def test_the_approach_claim_is_named_and_holds_exactly_inside_its_interval() -> 
     assert decide(beyond).verdict is Verdict.REFUTED
     below = approach_obligation(model, before_s, high - MILLI, "Approach", low=low - MILLI)
     assert decide(below).verdict is Verdict.REFUTED
+
+
+def _no_data_age() -> Model:
+    model = _model()
+    reaction = Reaction(Fraction(0), "test", model.reaction.period_s, "test")
+    return dataclasses.replace(model, reaction=reaction)
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
+@pytest.mark.parametrize(
+    "make",
+    [
+        _model,
+        lambda: _model(decel_min_mps2=1.25, decel_max_mps2=1.25),
+        lambda: _model(accel_max_mps2=0.0),
+        _no_data_age,
+    ],
+    ids=["default", "one-deceleration", "no-acceleration", "no-data-age"],
+)
+def test_a_range_of_one_value_is_checked_not_vacuously_proved(make: Callable[[], Model]) -> None:
+    """A speed band of one speed, a braking range of one deceleration, no acceleration, no data
+    age: each range is a single value, which the claim must still hold at. A zone 1 mm short of
+    the separation at 0.5 m/s is refuted at exactly 0.5 m/s, and one as deep is proved."""
+    model = make()
+    speed = Fraction("0.5")
+    needed = _separation(model, speed)
+    at = Use("forward", speed, speed, "one speed")
+    short = stop_obligation(model, Coverage("depth", needed - MILLI), at, "short")
+    assert decide(short).verdict is Verdict.REFUTED
+    exact = stop_obligation(model, Coverage("depth", needed), at, "exact")
+    assert decide(exact).verdict is Verdict.PROVED
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
+def test_the_reaction_time_says_where_each_bound_came_from() -> None:
+    assert _model().reaction.describe() == (
+        "data age <= 0.18 s (stopping.perception_latency_s, config) + control period <= 0.1 s "
+        "(stopping.control_cycle_s)"
+    )
