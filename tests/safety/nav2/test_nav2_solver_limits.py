@@ -37,6 +37,7 @@ def test_a_counterexample_only_at_an_irrational_point_is_approximated_to_twenty_
     assert value * value != 2
     # 20 digits leave |x^2 - 2| near 1e-24; 19 would leave near 1e-23.
     assert abs(value * value - 2) < Fraction(1, 10**24)
+    assert value == Fraction(3419358580004036860274167, 2417851639229258349412352)
     assert outcome.reason == ""
     said = f"; z3 {z3.get_version_string()} said: REFUTED\n(set-logic QF_NRA)\n"
     assert said in outcome.smtlib
@@ -57,3 +58,29 @@ def test_a_claim_z3_cannot_decide_is_unknown_with_its_reason() -> None:
     assert outcome.model == {}
     assert " said: UNKNOWN\n" in outcome.smtlib
     assert outcome.smtlib.endswith("(exit)\n")
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
+def test_a_variable_the_claim_does_not_constrain_still_gets_a_value() -> None:
+    """A counterexample names every variable of the obligation, also one no hypothesis or goal
+    mentions (z3 completes the model with 0)."""
+    x, y = z3.Reals("x y")
+    obligation = Obligation("free", "x <= 1 on [0, 2]", (x >= 0, x <= 2), x <= 1, (x, y))
+    outcome = decide(obligation)
+    assert outcome.verdict is Verdict.REFUTED
+    assert outcome.model == {"x": Fraction(3, 2), "y": Fraction(0)}
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
+def test_the_smtlib_text_says_what_was_asserted_and_ends_with_the_check() -> None:
+    x = z3.Real("x")
+    outcome = decide(Obligation("p", "x <= 1 on [0, 1]", (x >= 0, x <= 1), x <= 1, (x,)))
+    assert outcome.verdict is Verdict.PROVED
+    assert outcome.reason == ""
+    lines = outcome.smtlib.splitlines()
+    assert lines[:3] == [
+        "; safecase nav2 obligation: p",
+        "; claim: x <= 1 on [0, 1]",
+        "; asserted: the hypotheses and the NEGATED claim (unsat = PROVED, sat = counterexample)",
+    ]
+    assert outcome.smtlib.endswith(")\n(check-sat)\n(exit)\n")
