@@ -54,6 +54,8 @@ CLAIMED: tuple[str, ...] = (
     "safety/cycle.py",
     "safety/nav2/geometry.py",
     "safety/nav2/export.py",
+    "safety/nav2/obligations.py",
+    "safety/nav2/reader.py",
 )
 
 
