@@ -56,6 +56,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/nav2/export.py",
     "safety/nav2/obligations.py",
     "safety/nav2/reader.py",
+    "safety/nav2/usage.py",
 )
 
 
