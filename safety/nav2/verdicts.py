@@ -169,7 +169,7 @@ def build_model(
     return Model(stopping, reaction, closing, footprint), resolve_limits(params, config, cli)
 
 
-def _counterexample(model: Model, cov: Coverage, outcome: Outcome) -> str:
+def _counterexample(cov: Coverage, outcome: Outcome) -> str:
     values = outcome.model
     shown = ", ".join(f"{k} = {v} ({float(v):.6g})" for k, v in values.items())
     needed: Fraction = separation_m(
@@ -221,17 +221,15 @@ def _stop_finding(model: Model, zone: Zone, part: str, shape: Shape, use: Use) -
             "no safe speed: even from standstill, acceleration during the reaction time needs "
             f"{_g(standstill)} m"
         )
-    detail = f"{_counterexample(model, cov, outcome)}; {where}"
+    detail = f"{_counterexample(cov, outcome)}; {where}"
     return replace(base, detail=detail, safe_mps=safe, safe_outcome=safe_outcome)
 
 
 def _approach_finding(model: Model, zone: Zone, limits: RobotLimits) -> Finding:
     fp = model.footprint
-    high = (
-        limits.top_speed_mps
-        if limits.holonomic
-        else max(limits.forward.value, limits.reverse.value)
-    )
+    # The fastest the robot goes in any direction (forward or reverse, plus sideways when it
+    # may translate sideways): Nav2 times the collision along the velocity, whichever it is.
+    high = limits.top_speed_mps
     travel = "any" if limits.holonomic else "forward/reverse"
     before = zone.time_before_collision_s
     assert before is not None
