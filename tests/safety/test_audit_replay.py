@@ -1,0 +1,135 @@
+"""Replay of a log whose records were forged with correct hashes (SR-AUD-2).
+
+A log re-chained by someone who knows the hash function passes ``audit verify`` without its
+signed anchor; replay is what still catches a forged decision. Each test here forges one thing
+and checks what replay reports: which line, which value, what was recorded and what the
+governor decides from the recorded inputs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pipeline.config import default_config
+from properties.audit_cases import write_random_log
+from safety.audit.log import GENESIS, AuditError, anchor_path, canonical_json, record_hash
+from safety.audit.replay import ReplayMismatch, governor_for, replay
+
+CODE = ["safety/audit/replay.py"]
+# Seed 17 writes a stage's STOP verdict (a failed tracker) into the first cycle (line 2).
+SEED = 17
+
+
+def _log(tmp_path: Path) -> tuple[Path, list[dict[str, Any]]]:
+    log = tmp_path / "run.log"
+    write_random_log(log, default_config(), np.random.default_rng(SEED), 4)
+    anchor_path(log).unlink()
+    return log, [json.loads(line) for line in log.read_bytes().splitlines()]
+
+
+def _forge(log: Path, records: list[dict[str, Any]]) -> None:
+    """Write ``records`` re-chained: every prev and hash recomputed."""
+    prev, lines = GENESIS, []
+    for record in records:
+        body = {k: v for k, v in record.items() if k != "hash"} | {"prev": prev}
+        prev = record_hash(prev, body)
+        lines.append(canonical_json(body | {"hash": prev}) + b"\n")
+    log.write_bytes(b"".join(lines))
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_every_cycle_is_reproduced_including_a_failed_stage(tmp_path: Path) -> None:
+    log, records = _log(tmp_path)
+    assert "stage:track" in [v["monitor"] for v in records[1]["verdicts"]]
+    report = replay(log, require_anchor=False)
+    assert (report.n_cycles, report.n_reproduced, report.mismatches, report.refused) == (
+        4,
+        4,
+        [],
+        "",
+    )
+    assert report.ok
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_a_forged_command_is_a_mismatch_of_its_line(tmp_path: Path) -> None:
+    log, records = _log(tmp_path)
+    recorded = records[2]["command"]
+    forged = recorded | {"action": "PROCEED" if recorded["action"] != "PROCEED" else "STOP"}
+    records[2] = records[2] | {"command": forged}
+    # The failed stage's verdict dropped from the record: without it the decision differs.
+    records[1] = records[1] | {
+        "verdicts": [v for v in records[1]["verdicts"] if v["monitor"] != "stage:track"]
+    }
+    _forge(log, records)
+    report = replay(log, require_anchor=False)
+    assert not report.ok
+    assert (report.n_cycles, report.n_reproduced) == (4, 2)
+    by_line = {m.line: m for m in report.mismatches}
+    assert by_line[3] == ReplayMismatch(3, 2, "command", forged, recorded)
+    assert by_line[2].what in {"verdicts", "command"}
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_recorded_values_that_cannot_be_decided_are_reported_not_raised(tmp_path: Path) -> None:
+    log, records = _log(tmp_path)
+    records[2] = records[2] | {"observation": {}}
+    records[3] = records[3] | {"governor_inputs": {"stamp_s": 1.0}}
+    # A list where the runtime writes a mapping of counters.
+    records[4] = records[4] | {"observation": records[4]["observation"] | {"over_cap": [1]}}
+    _forge(log, records)
+    report = replay(log, require_anchor=False)
+    assert [(m.line, m.seq, m.what, m.recorded) for m in report.mismatches] == [
+        (3, 2, "inputs", "undecodable"),
+        (4, 3, "inputs", "undecodable"),
+        (5, 4, "inputs", "undecodable"),
+    ]
+    assert report.mismatches[0].replayed.startswith("KeyError(")
+    assert report.mismatches[2].replayed.startswith("AttributeError(")
+    assert (report.n_cycles, report.n_reproduced) == (4, 1)
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_a_tampered_or_empty_log_is_not_replayed(tmp_path: Path) -> None:
+    log, _ = _log(tmp_path)
+    lines = log.read_bytes().splitlines(keepends=True)
+    log.write_bytes(b"".join(lines[:2] + lines[3:]))
+    report = replay(log, require_anchor=False)
+    assert report.refused == (
+        "not replayed: the log is tampered (TAMPERED at line 3: records seq 2..2 missing: "
+        f"deleted (or reordered) ({report.verification.n_records} records, "
+        f"{report.verification.n_cycles} cycles, head seq 1, signature absent))"
+    )
+    assert (report.n_cycles, report.ok) == (0, False)
+    log.write_bytes(b"")
+    empty = replay(log, require_anchor=False)
+    assert empty.refused == "not replayed: the log has no header (not an audit log)"
+    assert not empty.ok
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_a_header_that_does_not_give_a_governor_is_an_error_saying_why(tmp_path: Path) -> None:
+    _, records = _log(tmp_path)
+    header = records[0]
+    config, governor = governor_for(header)
+    assert config == default_config()
+    assert governor.params.perception_latency_s == header["latency"]["perception_latency_s"]
+    assert governor.params.latency_source == header["latency"]["latency_source"]
+    broken = header | {"config": header["config"] | {"stopping": {"decel_min_mps2": -1}}}
+    with pytest.raises(AuditError, match=r"^audit header: configuration does not load: "):
+        governor_for(broken)
+    other = header | {"config_hash": "ab" * 32}
+    with pytest.raises(AuditError) as caught:
+        governor_for(other)
+    assert str(caught.value) == (
+        f"audit header: configuration hashes to {header['config_hash'][:16]}, the header "
+        "records abababababababab"
+    )
+    late = header | {"latency": {"perception_latency_s": "soon", "latency_source": "x"}}
+    with pytest.raises(AuditError, match=r"^audit header: latency bound unusable: "):
+        governor_for(late)
