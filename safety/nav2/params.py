@@ -185,7 +185,7 @@ def parse_points(section: Section, name: str, *, required: bool) -> tuple[Vertex
         raise section.fail(name, value, _POINTS_ALLOWED)
     if any(abs(c) > MAX_ABS_VALUE for c in coords):
         raise section.fail(name, value, f"coordinates within +-{int(MAX_ABS_VALUE)} m")
-    vertices = tuple(zip(coords[0::2], coords[1::2], strict=True))
+    vertices = tuple((coords[i], coords[i + 1]) for i in range(0, len(coords), 2))
     if len(set(vertices)) < 3:
         raise section.fail(name, value, _POINTS_ALLOWED)
     if len(vertices) > MAX_VERTICES:
@@ -215,8 +215,8 @@ def _subpolygon(parent: Section, name: str, holonomic: bool) -> SubPolygon:
         values["linear_max"],
         values["theta_min"],
         values["theta_max"],
-        start if start is not None else -PI,
-        end if end is not None else PI,
+        start,
+        end,
     )
 
 
@@ -224,8 +224,8 @@ def _zone(section: Section, name: str) -> Zone:
     shape = section.choice("type", SHAPES)
     action = section.choice("action_type", ACTIONS)
     min_points = section.integer("min_points", DEFAULT_MIN_POINTS, low=1)
-    if section.has("max_points"):
-        min_points = section.integer("max_points", 0, low=0) + 1
+    # Humble's max_points is the most points still allowed: one more stops; it wins if given.
+    min_points = section.integer("max_points", min_points - 1, low=0) + 1
     zero = Fraction(0)
     zone = Zone(name, shape, action, section.boolean("enabled", True), min_points)
     if action == "slowdown":

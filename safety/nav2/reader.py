@@ -15,7 +15,7 @@ import math
 from collections.abc import Mapping
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
@@ -133,6 +133,28 @@ class Section:
         """True when parameter ``name`` is set (to anything but null)."""
         return self.data.get(name) is not None
 
+    @overload
+    def number(
+        self,
+        name: str,
+        default: Fraction,
+        *,
+        low: Fraction = ...,
+        low_open: bool = ...,
+        high: Fraction = ...,
+    ) -> Fraction: ...
+
+    @overload
+    def number(
+        self,
+        name: str,
+        default: None = None,
+        *,
+        low: Fraction = ...,
+        low_open: bool = ...,
+        high: Fraction = ...,
+    ) -> Fraction | None: ...
+
     def number(
         self,
         name: str,
@@ -142,7 +164,8 @@ class Section:
         low_open: bool = False,
         high: Fraction = MAX_ABS_VALUE,
     ) -> Fraction | None:
-        """A finite number in ``[low, high]`` (``(low, high]`` if ``low_open``), exactly."""
+        """A finite number in ``[low, high]`` (``(low, high]`` if ``low_open``), exactly;
+        ``default`` when the parameter is not set (so never None when a default is given)."""
         value = self.data.get(name)
         if value is None:
             return default
