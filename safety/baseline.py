@@ -54,8 +54,6 @@ def points_inside(vertices: FloatArray, x_m: FloatArray, y_m: FloatArray) -> Boo
     xj, yj = np.roll(xi, 1), np.roll(yi, 1)
     for k in range(vertices.shape[0]):
         crosses = (y_m < yi[k]) != (y_m < yj[k])
-        if not crosses.any():
-            continue
         with np.errstate(divide="ignore", invalid="ignore"):
             x_cut = (xj[k] - xi[k]) * (y_m - yi[k]) / (yj[k] - yi[k]) + xi[k]
         inside ^= crosses & (x_m < x_cut)
@@ -171,7 +169,7 @@ def _zone_limit(zone: Zone, command_mps: float) -> float:
         return command_mps * float(zone.slowdown_ratio)
     if zone.action == "limit":
         assert zone.linear_limit_mps is not None
-        return min(command_mps, float(zone.linear_limit_mps))
+        return float(zone.linear_limit_mps)  # a limit above the command leaves it as it is
     return command_mps  # "none": Nav2 only reports it
 
 
