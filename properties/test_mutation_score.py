@@ -57,6 +57,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/nav2/obligations.py",
     "safety/nav2/reader.py",
     "safety/nav2/usage.py",
+    "safety/nav2/verdicts.py",
 )
 
 
