@@ -55,6 +55,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/nav2/geometry.py",
     "safety/nav2/export.py",
     "safety/nav2/obligations.py",
+    "safety/nav2/params.py",
     "safety/nav2/reader.py",
     "safety/nav2/usage.py",
     "safety/nav2/verdicts.py",

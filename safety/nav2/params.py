@@ -41,7 +41,6 @@ from safety.nav2.reader import (
     nearest_float32,
     node_parameters,
     parse_yaml,
-    shown,
 )
 
 __all__ = [
@@ -386,9 +385,9 @@ def _params(data: Mapping[str, Any], name: str) -> Nav2Params:
 
 def _required(node: Section, name: str) -> Section:
     section = node.section(name, required=False)
-    if section is None:
+    if section is None:  # nothing there: node.section refuses a value that is not a mapping
         raise Nav2ParamsError(
-            f"{node.key(name)} = {shown(node.data.get(name))}: allowed: a mapping with the "
-            "polygon's type and action_type (it is listed in polygons)"
+            f"{node.key(name)} = None: allowed: a mapping with the polygon's type and "
+            "action_type (it is listed in polygons)"
         )
     return section

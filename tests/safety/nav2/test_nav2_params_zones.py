@@ -213,3 +213,34 @@ def test_each_source_takes_its_own_keys_or_the_nodes_defaults() -> None:
     assert str(caught.value) == (
         "collision_monitor.source_timeout = -1.0: allowed: a number in [0, 10000]"
     )
+
+
+@pytest.mark.requirement("SR-NAV-4", kind="example", code=CODE)
+def test_the_file_names_its_frame_its_polygons_and_itself() -> None:
+    params = parse_params(
+        HEAD + "      " + CIRCLE.replace("\n", "\n      ") + 'action_type: "stop"\n'
+    )
+    assert (params.name, params.base_frame_id) == ("<text>", "base_footprint")
+    framed = parse_params(
+        HEAD.replace("    Z:\n", '    base_frame_id: "base_link"\n    Z:\n')
+        + '      type: "circle"\n      radius: 1.0\n      action_type: "stop"\n',
+        "robot.yaml",
+    )
+    assert (framed.name, framed.base_frame_id) == ("robot.yaml", "base_link")
+    no_list = HEAD.replace('    polygons: ["Z"]\n', "")
+    with pytest.raises(Nav2ParamsError) as caught:
+        parse_params(
+            no_list + '      type: "circle"\n      radius: 1.0\n      action_type: "stop"\n'
+        )
+    assert (
+        str(caught.value) == "collision_monitor.polygons = None: allowed: a list of distinct names"
+    )
+    with pytest.raises(Nav2ParamsError) as caught:
+        parse_params(HEAD)
+    assert str(caught.value) == (
+        "collision_monitor.Z = None: allowed: a mapping with the polygon's type and action_type "
+        "(it is listed in polygons)"
+    )
+    with pytest.raises(Nav2ParamsError) as caught:
+        parse_params(HEAD.replace("    Z:\n", "    Z: 5\n"))
+    assert str(caught.value) == "collision_monitor.Z = 5: allowed: a mapping of its parameters"
