@@ -8,6 +8,7 @@ that is a FIFO, a device or a loop of links must be an error naming the path, no
 from __future__ import annotations
 
 import base64
+import hashlib
 import os
 import socket
 import stat
@@ -27,6 +28,7 @@ from safety.audit.keys import (
     load_private_key,
     load_public_key,
     private_key_pem,
+    public_key_fingerprint,
     raw_public_key,
 )
 
@@ -61,6 +63,7 @@ def test_a_trusted_key_reads_from_each_of_its_three_spellings(tmp_path: Path) ->
     for name, data in spellings.items():
         (tmp_path / name).write_bytes(data)
         assert raw_public_key(load_public_key(tmp_path / name)) == raw, name
+    assert public_key_fingerprint(key.public_key()) == "sha256:" + hashlib.sha256(raw).hexdigest()
 
 
 @pytest.mark.requirement("SR-AUD-1", kind="example", code=CODE)
@@ -77,6 +80,11 @@ def test_a_trusted_key_that_is_not_an_ed25519_key_is_refused_naming_the_file(
             "expected an Ed25519 key",
         ),
         "short.b64": (base64.b64encode(bytes(31)), "unreadable ("),
+        # Characters outside base64 are refused, not skipped.
+        "stray.b64": (
+            base64.b64encode(bytes(32))[:20] + b"!" + base64.b64encode(bytes(32))[20:],
+            "unreadable (",
+        ),
         "not-base64.txt": (b"not a key at all", "unreadable ("),
         "bad.pem": (
             b"-----BEGIN PUBLIC KEY-----\nAAAA\n-----END PUBLIC KEY-----\n",
@@ -244,8 +252,28 @@ def test_a_folder_made_meanwhile_by_someone_else_is_used_and_left_as_it_is(
     theirs.chmod(0o755)
     real = os.path.lexists
     monkeypatch.setattr(os.path, "lexists", lambda p: p != theirs and real(p))
-    _, path, created = load_or_create_key(theirs / "key.pem")
+    _, path, created = load_or_create_key(theirs / "ours" / "key.pem")
     monkeypatch.undo()
     assert created
     assert path.is_file()
     assert stat.S_IMODE(theirs.stat().st_mode) == 0o755
+    assert stat.S_IMODE((theirs / "ours").stat().st_mode) == 0o700
+
+
+@pytest.mark.requirement("SR-AUD-1", kind="example", code=CODE)
+def test_a_key_made_meanwhile_is_never_overwritten_nor_a_link_written_through(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Between looking and creating, someone put a key (or a link) there: creation fails
+    naming the path, and what is there stays as it was."""
+    existing = tmp_path / "key.pem"
+    existing.write_bytes(b"their key")
+    link = tmp_path / "link.pem"
+    link.symlink_to(tmp_path / "elsewhere.pem")
+    monkeypatch.setattr(os.path, "lexists", lambda p: False)
+    for path in (existing, link):
+        with pytest.raises(SigningKeyError, match=rf"^signing key {path}: cannot create \("):
+            load_or_create_key(path)
+    monkeypatch.undo()
+    assert existing.read_bytes() == b"their key"
+    assert not (tmp_path / "elsewhere.pem").exists()
