@@ -42,6 +42,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/braking.py",
     "safety/model/caution.py",
     "safety/model/second_scanner.py",
+    "safety/audit/anchor.py",
     "safety/geometry/contact.py",
     "safety/geometry/costmap.py",
     "safety/geometry/envelopes.py",
