@@ -91,6 +91,10 @@ STRUCTURE: dict[str, tuple[dict[str, Any], str]] = {
         "a header record without config, software",
     ),
     "header with a key more": (_header(extra=1), "a header record with unknown extra"),
+    "header with two keys more": (
+        _header(extra=1, more=2),
+        "a header record with unknown extra, more",
+    ),
     "cycle both": (
         {k: v for k, v in _cycle(zz=1).items() if k != "inputs"},
         "a cycle record without inputs and with unknown zz",
@@ -265,6 +269,9 @@ def test_a_json_problem_is_short_and_never_the_text() -> None:
     long = ValueError("x" * 300 + "; the rest")
     assert json_problem(long) == "x" * 100
     assert json_problem(ValueError("first; second")) == "first"
+    assert json_problem(ValueError("first; second; third")) == "first"
+    bad = BadRecordError(3, "a cycle without its stamp")
+    assert (str(bad), bad.line, bad.problem) == ("a cycle without its stamp", 3, bad.problem)
 
 
 def test_base64_has_one_spelling_and_one_length() -> None:
