@@ -44,6 +44,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/second_scanner.py",
     "safety/audit/anchor.py",
     "safety/audit/records.py",
+    "safety/audit/verify.py",
     "safety/geometry/contact.py",
     "safety/geometry/costmap.py",
     "safety/geometry/envelopes.py",

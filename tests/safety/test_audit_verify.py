@@ -127,6 +127,16 @@ def test_forged_records_with_correct_hashes_are_named(tmp_path: Path) -> None:
             1,
             "schema 'safecase-audit/9', expected safecase-audit/1",
         ),
+        "long schema": (
+            [header | {"schema": "s" * 50}, *cycles, close],
+            1,
+            f"schema {'s' * 40!r}, expected safecase-audit/1",
+        ),
+        "long kind": (
+            [header, cycles[0] | {"kind": "k" * 50}, *cycles[1:], close],
+            2,
+            f"unknown record kind {'k' * 40!r}: edited",
+        ),
         "count": (
             [header, *cycles, close | {"n_records": 4}],
             6,
@@ -234,6 +244,17 @@ def test_a_log_that_stops_is_incomplete_and_says_where(tmp_path: Path) -> None:
         AuditStatus.EMPTY,
         None,
         "no complete record (a line without its newline): not an audit log",
+    )
+    log.write_bytes(b"")
+    assert _verdict(log) == (AuditStatus.EMPTY, None, "empty file: not an audit log")
+    # With an anchor that says records were made durable, an empty log was truncated.
+    (tmp_path / "anchored").mkdir()
+    anchored = _log(tmp_path / "anchored")
+    anchored.write_bytes(b"")
+    assert _verdict(anchored) == (
+        TAMPERED,
+        1,
+        "empty log, but the anchor says records were written: truncated",
     )
 
 
