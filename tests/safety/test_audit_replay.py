@@ -14,11 +14,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from pipeline.config import default_config
 from properties.audit_cases import write_random_log
 from safety.audit.log import GENESIS, AuditError, anchor_path, canonical_json, record_hash
 from safety.audit.replay import ReplayMismatch, governor_for, replay
+from safety.audit.verify import AuditStatus
 
 CODE = ["safety/audit/replay.py"]
 # Seed 17 writes a stage's STOP verdict (a failed tracker) into the first cycle (line 2).
@@ -121,8 +123,20 @@ def test_a_header_that_does_not_give_a_governor_is_an_error_saying_why(tmp_path:
     assert governor.params.perception_latency_s == header["latency"]["perception_latency_s"]
     assert governor.params.latency_source == header["latency"]["latency_source"]
     broken = header | {"config": header["config"] | {"stopping": {"decel_min_mps2": -1}}}
-    with pytest.raises(AuditError, match=r"^audit header: configuration does not load: "):
+    with pytest.raises(AuditError) as refused:
         governor_for(broken)
+    assert str(refused.value) == (
+        "audit header: configuration does not load: audit header: stopping.decel_min_mps2 = -1: "
+        "Input should be greater than 0; allowed: a number > 0.0 and <= 20.0"
+    )
+    # The governor runs with the header's latency bound, not the configuration's.
+    bench = header | {"latency": {"perception_latency_s": 0.25, "latency_source": "bench"}}
+    _, measured = governor_for(bench)
+    assert (measured.params.perception_latency_s, measured.params.latency_source) == (
+        0.25,
+        "bench",
+    )
+    assert measured.params.reaction_s > governor.params.reaction_s
     other = header | {"config_hash": "ab" * 32}
     with pytest.raises(AuditError) as caught:
         governor_for(other)
@@ -133,3 +147,19 @@ def test_a_header_that_does_not_give_a_governor_is_an_error_saying_why(tmp_path:
     late = header | {"latency": {"perception_latency_s": "soon", "latency_source": "x"}}
     with pytest.raises(AuditError, match=r"^audit header: latency bound unusable: "):
         governor_for(late)
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_replay_verifies_first_with_the_anchor_and_the_trusted_key_it_is_given(
+    tmp_path: Path,
+) -> None:
+    unanchored, _ = _log(tmp_path)
+    assert replay(unanchored).verification.status is AuditStatus.UNANCHORED
+    assert replay(unanchored, require_anchor=False).verification.status is AuditStatus.INTACT
+    key, other = Ed25519PrivateKey.generate(), Ed25519PrivateKey.generate()
+    signed = tmp_path / "signed.log"
+    write_random_log(signed, default_config(), np.random.default_rng(SEED), 2, key=key)
+    assert replay(signed, trusted_key=key.public_key()).ok
+    stranger = replay(signed, trusted_key=other.public_key())
+    assert stranger.verification.status is AuditStatus.TAMPERED
+    assert stranger.refused.startswith("not replayed: the log is tampered (TAMPERED: ")
