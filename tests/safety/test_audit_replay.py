@@ -21,6 +21,8 @@ from properties.audit_cases import write_random_log
 from safety.audit.log import GENESIS, AuditError, anchor_path, canonical_json, record_hash
 from safety.audit.replay import ReplayMismatch, governor_for, replay
 from safety.audit.verify import AuditStatus
+from safety.model.decision import decide
+from safety.model.monitors import Observation
 
 CODE = ["safety/audit/replay.py"]
 # Seed 17 writes a stage's STOP verdict (a failed tracker) into the first cycle (line 2).
@@ -163,3 +165,42 @@ def test_replay_verifies_first_with_the_anchor_and_the_trusted_key_it_is_given(
     stranger = replay(signed, trusted_key=other.public_key())
     assert stranger.verification.status is AuditStatus.TAMPERED
     assert stranger.refused.startswith("not replayed: the log is tampered (TAMPERED: ")
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_a_decision_that_raises_is_reported_and_the_replay_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No decodable record found so far makes the decision raise (it fails safe instead); the
+    replay still must not stop on one, so one is made to raise here, on the third line."""
+    log, _ = _log(tmp_path)
+    real = decide
+    calls = []
+
+    def decide_or_raise(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        if len(calls) == 2:
+            raise ArithmeticError("x" * 300)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr("safety.audit.replay.decide", decide_or_raise)
+    report = replay(log, require_anchor=False)
+    assert report.mismatches == [
+        ReplayMismatch(3, 2, "decision", "recorded", repr(ArithmeticError("x" * 300))[:200])
+    ]
+    assert (report.n_cycles, report.n_reproduced, len(calls)) == (4, 3, 4)
+
+
+@pytest.mark.requirement("SR-AUD-2", kind="example", code=CODE)
+def test_an_undecodable_records_reason_is_cut_to_200_characters(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    log, _ = _log(tmp_path)
+
+    def refuse(value: Any) -> Any:
+        raise ValueError("y" * 300)
+
+    monkeypatch.setattr(Observation, "from_dict", staticmethod(refuse))
+    report = replay(log, require_anchor=False)
+    assert [m.replayed for m in report.mismatches] == [repr(ValueError("y" * 300))[:200]] * 4
+    assert len(report.mismatches[0].replayed) == 200
