@@ -43,6 +43,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/caution.py",
     "safety/model/second_scanner.py",
     "safety/audit/anchor.py",
+    "safety/audit/files.py",
     "safety/audit/records.py",
     "safety/audit/verify.py",
     "safety/geometry/contact.py",
