@@ -44,6 +44,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/model/second_scanner.py",
     "safety/audit/anchor.py",
     "safety/audit/files.py",
+    "safety/audit/keys.py",
     "safety/audit/records.py",
     "safety/audit/verify.py",
     "safety/geometry/contact.py",
