@@ -127,8 +127,15 @@ def test_an_approach_zone_without_points_uses_the_configured_footprint(
     )
     base = _baseline(config, approach, '"Ahead"')
     front = 0.5 * config.geometry.footprint_length_m
+    side = 0.5 * config.geometry.footprint_width_m
     assert base.speed_mps(*_at(front - 0.01))[0] == 0.0
     assert base.speed_mps(*_at(front + 0.25))[0] == pytest.approx(0.2)
+    # The footprint's every corner: just inside each side stops, just outside does not.
+    for x, y in ((front, side), (front, -side), (-front, -side), (-front, side)):
+        inside = (x * 0.98, y * 0.98)
+        outside = (x * 0.98, y * 1.02)
+        assert base.speed_mps(*_at(*inside))[0] == 0.0, inside
+        assert base.speed_mps(np.array([outside[0]]), np.array([outside[1]]))[0] > 0.0, outside
 
 
 @pytest.mark.requirement("SR-AVL-4", kind="example", code=CODE)
@@ -198,3 +205,18 @@ def test_a_cycle_gives_stop_slow_or_proceed_and_records_its_clock(config: Safeca
     }
     assert outputs[2.0].record.observation.previous_now_s == pytest.approx(10.15)
     assert outputs[2.0].record.observation.scan_stamp_s == 11.0
+    assert outputs[2.0].record.observation.now_s == outputs[2.0].command.stamp_s
+    # What is logged: the command as its decision, no governor inputs, the stage's own time.
+    for out in (blind, *outputs.values()):
+        assert out.decision.command is out.command
+        assert (out.decision.governor_command, out.decision.verdicts) == (None, ())
+        assert out.record.decision is out.decision
+        assert (out.record.governor_inputs, dict(out.record.inputs)) == (None, {})
+        assert dict(out.record.timings_s) == out.wall_s == {"nav2": out.wall_s["nav2"]}
+        assert 0.0 <= out.wall_s["nav2"] < 1.0
+        assert 0.0 <= out.cpu_s < 1.0
+        assert (out.envelopes, out.distances) == (None, None)
+    # Without a simulated clock the cycle is charged what it took.
+    timed = base.step(CycleInput.standing(None, 20.0, config))
+    assert timed.record.observation.cycle_duration_s == timed.wall_s["nav2"]
+    assert timed.command.stamp_s == 20.0 + timed.wall_s["nav2"]
