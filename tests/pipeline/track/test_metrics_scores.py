@@ -122,3 +122,16 @@ def test_a_track_keeps_its_object_within_the_threshold_even_when_another_is_clos
     quality = evaluate(truth, hyps)
     assert (quality.n_matches, quality.id_switches, quality.n_false_positives) == (2, 0, 1)
     assert quality.motp_m == 1.0
+
+
+@pytest.mark.requirement("SR-TRK-5", kind="example", code=CODE)
+def test_an_infeasible_pair_never_wins_the_assignment_over_a_feasible_one() -> None:
+    """One object, two hypotheses: the first 5 m away (infeasible), the second 0.5 m away.
+    The assignment must price the infeasible pair above every feasible one."""
+    quality = evaluate([_frame({1: (0.0, 0.0)})], [_frame({9: (5.0, 0.0), 8: (0.5, 0.0)})])
+    assert (quality.n_matches, quality.n_false_positives, quality.motp_m) == (1, 1, 0.5)
+    # With a 2 m threshold a feasible pair may cost more than 1 m: still preferred.
+    far = evaluate(
+        [_frame({1: (0.0, 0.0)})], [_frame({9: (5.0, 0.0), 8: (1.5, 0.0)})], match_threshold_m=2.0
+    )
+    assert (far.n_matches, far.motp_m) == (1, 1.5)
