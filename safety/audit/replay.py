@@ -130,8 +130,9 @@ def replay(
                 for v in record["verdicts"]
                 if v["monitor"] not in _MONITOR_NAMES
             ]
-        except (AttributeError, KeyError, TypeError, ValueError, ArithmeticError) as exc:
-            # A mapping where a list was recorded, or the other way round: no runtime wrote it.
+        except (KeyError, TypeError, ValueError, ArithmeticError) as exc:
+            # A key missing, a list where a mapping was recorded or the other way round: no
+            # runtime wrote it.
             report.mismatches.append(
                 ReplayMismatch(number, record["seq"], "inputs", "undecodable", repr(exc)[:200])
             )

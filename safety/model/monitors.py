@@ -148,7 +148,10 @@ class Observation:
         ):
             if isinstance(values.get(key), str):
                 values[key] = float(values[key])
-        values["over_cap"] = tuple((str(k), int(v)) for k, v in values["over_cap"].items())
+        over_cap = values["over_cap"]
+        if not isinstance(over_cap, Mapping):
+            raise ValueError(f"over_cap: expected a mapping of cap name to count, got {over_cap!r}")
+        values["over_cap"] = tuple((str(k), int(v)) for k, v in over_cap.items())
         return cls(**values)
 
 

@@ -62,33 +62,19 @@ def _fraction(value: z3.ExprRef) -> Fraction | None:
 
 
 def _rational_model(obligation: Obligation, model: z3.ModelRef) -> dict[str, Fraction]:
-    """The model as rationals; an algebraic point is replaced by a nearby rational one.
+    """The model as rationals; an algebraic value is replaced by its 20-digit approximation.
 
-    The rational point is confirmed by z3 to be a counterexample too; when none of the tried
-    precisions gives one (a counterexample set thinner than 1e-20), the closest approximation
-    is returned, and the exact reading of the check says it is not confirmed.
+    z3 gives an algebraic value where the constraints pin a variable to an irrational point,
+    so the approximation (within 1e-20) need not be a counterexample itself; the exact reading
+    of the check in :mod:`safety.nav2.verdicts` says whether it is confirmed.
     """
-    values = {str(v): model.eval(v, model_completion=True) for v in obligation.variables}
-    exact = {k: _fraction(v) for k, v in values.items()}
-    if all(v is not None for v in exact.values()):
-        return {k: v for k, v in exact.items() if v is not None}
-    candidate: dict[str, Fraction] = {}
-    for digits in (6, 10, 15, 20):
-        for var in obligation.variables:
-            value = values[str(var)]
-            rational = _fraction(value.approx(digits) if z3.is_algebraic_value(value) else value)
-            assert rational is not None
-            candidate[str(var)] = rational
-        check = z3.SolverFor(_LOGIC)
-        check.add(*obligation.hypotheses, z3.Not(obligation.goal))
-        check.add(*(v == z3.Q(*_pair(candidate[str(v)])) for v in obligation.variables))
-        if check.check() == z3.sat:
-            break
-    return candidate
-
-
-def _pair(value: Fraction) -> tuple[int, int]:
-    return value.numerator, value.denominator
+    rationals: dict[str, Fraction] = {}
+    for var in obligation.variables:
+        value = model.eval(var, model_completion=True)
+        rational = _fraction(value.approx(20) if z3.is_algebraic_value(value) else value)
+        assert rational is not None
+        rationals[str(var)] = rational
+    return rationals
 
 
 def decide(obligation: Obligation, timeout_ms: int = DEFAULT_TIMEOUT_MS) -> Outcome:

@@ -185,6 +185,15 @@ def test_verdict_and_observation_round_trip() -> None:
         MonitorVerdict("x", Action.SLOW, 0.2)
 
 
+def test_an_observation_with_its_caps_as_a_list_is_refused_naming_the_key() -> None:
+    data = _fine(over_cap=(("a", 1),)).to_dict() | {"over_cap": [["a", 1]]}
+    with pytest.raises(ValueError) as refused:
+        Observation.from_dict(data)
+    assert str(refused.value) == (
+        "over_cap: expected a mapping of cap name to count, got [['a', 1]]"
+    )
+
+
 def test_decide_runs_governor_and_monitors() -> None:
     governor = Governor.from_config(CONFIG)
     inputs = GovernorInputs(10.0, np.array([0.9, 5.0]), None, np.array([0.95, 0.95]), None)

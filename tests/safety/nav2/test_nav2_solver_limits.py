@@ -27,7 +27,7 @@ def test_an_integer_counterexample_is_a_whole_fraction() -> None:
 @pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
 def test_a_counterexample_only_at_an_irrational_point_is_approximated_to_twenty_digits() -> None:
     """The only counterexample is x = sqrt(2): no rational point is one, so the report gives
-    the closest approximation tried (20 digits), which the exact reading says is not confirmed."""
+    its 20-digit approximation, which the exact reading says is not confirmed."""
     x = z3.Real("x")
     obligation = Obligation("thin", "x <= 1 where x^2 = 2", (x >= 0, x * x == 2), x <= 1, (x,))
     outcome = decide(obligation)
@@ -41,6 +41,22 @@ def test_a_counterexample_only_at_an_irrational_point_is_approximated_to_twenty_
     assert outcome.reason == ""
     said = f"; z3 {z3.get_version_string()} said: REFUTED\n(set-logic QF_NRA)\n"
     assert said in outcome.smtlib
+
+
+@pytest.mark.requirement("SR-NAV-1", kind="example", code=CODE)
+def test_beside_an_algebraic_value_integers_and_rationals_are_kept_exact() -> None:
+    """Only the irrational value is approximated: the integer and the rational of the same
+    counterexample are z3's own."""
+    x, q = z3.Reals("x q")
+    i = z3.Int("i")
+    hypotheses = (x >= 0, x * x == 2, i == 7, q == z3.Q(1, 3))
+    outcome = decide(Obligation("mixed", "x <= 1 where x^2 = 2", hypotheses, x <= 1, (i, x, q)))
+    assert outcome.verdict is Verdict.REFUTED
+    assert outcome.model == {
+        "i": Fraction(7),
+        "x": Fraction(3419358580004036860274167, 2417851639229258349412352),
+        "q": Fraction(1, 3),
+    }
 
 
 @pytest.mark.requirement("SR-NAV-4", kind="example", code=CODE)
