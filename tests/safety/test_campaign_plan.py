@@ -59,7 +59,7 @@ def test_encounters_sort_by_scenario_seed_length_then_weather_own_first() -> Non
     assert first <= Encounter("a", 1, 5.0)
     assert first.__lt__("a/1/5") is NotImplemented
     with pytest.raises(TypeError):
-        _ = first < ("a", 1, 5.0)  # type: ignore[operator]
+        _ = first < ("a", 1, 5.0)
 
 
 def test_a_key_gives_the_length_as_written() -> None:
