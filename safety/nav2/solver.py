@@ -97,5 +97,6 @@ def decide(obligation: Obligation, timeout_ms: int = DEFAULT_TIMEOUT_MS) -> Outc
         f"; z3 {z3.get_version_string()} said: {verdict.value}",
         f"(set-logic {_LOGIC})",
     ]
-    text = "\n".join(header) + "\n" + solver.to_smt2().rstrip("\n") + "\n(exit)\n"
+    # z3's text ends with "(check-sat)" and a newline.
+    text = "\n".join(header) + "\n" + solver.to_smt2() + "(exit)\n"
     return Outcome(verdict, text, model, reason)
