@@ -48,12 +48,16 @@ DEFAULT_BASELINE = Path(__file__).resolve().parents[1] / "examples" / "nav2" / "
 
 
 def points_inside(vertices: FloatArray, x_m: FloatArray, y_m: FloatArray) -> BoolArray:
-    """Nav2's even-odd ray-crossing test of each point against the polygon ``vertices`` (k, 2)."""
+    """Nav2's even-odd ray-crossing test of each point against the polygon ``vertices`` (k, 2).
+
+    An edge counts when the point's y lies in (lower end, upper end] and the edge meets the ray
+    from the point along +x beyond it, as collision_monitor's ``Polygon::isPointInside`` counts
+    it: a point on a bottom or right edge is outside, one on a top or left edge inside."""
     inside = np.zeros(x_m.shape, dtype=bool)
     xi, yi = vertices[:, 0], vertices[:, 1]
     xj, yj = np.roll(xi, 1), np.roll(yi, 1)
     for k in range(vertices.shape[0]):
-        crosses = (y_m < yi[k]) != (y_m < yj[k])
+        crosses = (y_m <= yj[k]) == (y_m > yi[k])
         with np.errstate(divide="ignore", invalid="ignore"):
             x_cut = (xj[k] - xi[k]) * (y_m - yi[k]) / (yj[k] - yi[k]) + xi[k]
         inside ^= crosses & (x_m < x_cut)

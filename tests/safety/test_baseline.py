@@ -171,6 +171,26 @@ def test_points_inside_follows_the_even_odd_rule() -> None:
     assert not points_inside(notched, np.array([2.0]), np.array([9.0])).any()
 
 
+def test_points_inside_counts_the_boundary_as_nav2_does() -> None:
+    """collision_monitor counts an edge when the point's y is in (lower end, upper end] and the
+    crossing lies strictly beyond the point: on the square [0, 2]^2 the top and left edges are
+    inside, the bottom and right edges outside (the top-left corner inside, the other corners
+    outside); a ray through a side vertex counts once."""
+    square = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
+    x = np.array([1.0, 1.0, 0.0, 2.0, 0.0, 2.0, 0.0, 2.0])
+    y = np.array([0.0, 2.0, 1.0, 1.0, 0.0, 0.0, 2.0, 2.0])
+    on_edges = points_inside(square, x, y).tolist()
+    assert on_edges == [False, True, True, False, False, False, True, False]
+    # The same square wound the other way round gives the same answer.
+    assert points_inside(square[::-1].copy(), x, y).tolist() == on_edges
+    # Rays through the diamond's side vertices, from outside, inside and beyond; its bottom and
+    # top vertices are outside (each edge meets the ray at the point itself, not beyond it).
+    diamond = np.array([[1, 0], [2, 1], [1, 2], [0, 1]], float)
+    x = np.array([-1.0, 1.0, 3.0, 1.0, 1.0])
+    y = np.array([1.0, 1.0, 1.0, 0.0, 2.0])
+    assert points_inside(diamond, x, y).tolist() == [False, True, False, False, False]
+
+
 def _scan(stamp_s: float, range_m: float) -> Scan:
     angles = np.linspace(-0.5, 0.5, 41)
     return Scan(stamp_s, angles, np.full(angles.shape, range_m))
