@@ -20,6 +20,7 @@ and on labelled logs. Metrics:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -140,15 +141,12 @@ def evaluate(
         used_h = set(pairs.values())
         free_g = [i for i, g in enumerate(g_ids) if g not in pairs]
         free_h = [j for j, h in enumerate(h_ids) if h not in used_h]
-        if free_g and free_h:
-            # Minimum total distance (not squared distance), as CLEAR-MOT and py-motmetrics.
-            feasible = d2[np.ix_(free_g, free_h)] <= thr2
+        # Minimum total distance (not squared distance), as CLEAR-MOT and py-motmetrics.
+        feasible = d2[np.ix_(free_g, free_h)] <= thr2
+        if feasible.any():
             sub = np.sqrt(d2[np.ix_(free_g, free_h)])
-            big = (
-                (float(sub[feasible].max()) + 1.0) * (min(sub.shape) + 1.0)
-                if feasible.any()
-                else 1.0
-            )
+            # Dearer than any assignment of feasible pairs, so none of them is given up.
+            big = (float(sub[feasible].max()) + 1.0) * (min(sub.shape) + 1.0)
             r, col = linear_sum_assignment(np.where(feasible, sub, big))
             for a, b in zip(r.tolist(), col.tolist(), strict=True):
                 if feasible[a, b]:
@@ -162,7 +160,7 @@ def evaluate(
             dist_sum += float(np.sqrt(dd))
         for g in g_ids:
             tracked = g in pairs
-            if tracked and not tracked_before.get(g, False):
+            if tracked and not tracked_before.get(g):
                 segments[g] = segments.get(g, 0) + 1
             tracked_before[g] = tracked
         n_truth += len(g_ids)
@@ -179,10 +177,10 @@ def evaluate(
         n_false_positives=n_fp,
         id_switches=n_switches,
         fragmentations=sum(max(s - 1, 0) for s in segments.values()),
-        mota=1.0 - (n_misses + n_fp + n_switches) / n_truth if n_truth else float("nan"),
-        motp_m=dist_sum / n_matches if n_matches else float("nan"),
-        position_rmse_m=float(np.sqrt(sq_sum / n_matches)) if n_matches else float("nan"),
-        gospa_mean_m=gospa_sum / n_frames if n_frames else float("nan"),
+        mota=1.0 - (n_misses + n_fp + n_switches) / n_truth if n_truth else math.nan,
+        motp_m=dist_sum / n_matches if n_matches else math.nan,
+        position_rmse_m=float(np.sqrt(sq_sum / n_matches)) if n_matches else math.nan,
+        gospa_mean_m=gospa_sum / n_frames if n_frames else math.nan,
         n_truth_ids=len(truth_ids),
         n_hypothesis_ids=len(hyp_ids),
     )

@@ -92,3 +92,15 @@ def test_reidentification_is_scored_on_and_off_over_the_same_frames(track: Track
     slow = overridden(default_config(), {"track": {"confirm_hits": track.confirm_hits + 3}})
     later = compare_reid(frames, slow.track)
     assert later["reid_on"].n_matches < scores["reid_on"].n_matches
+
+
+def test_reidentification_is_scored_with_a_one_metre_match_by_default(track: TrackSection) -> None:
+    """The truth stands 1.5 m from what the scanner sees: beyond the default 1 m match no
+    frame is matched, within an explicit 2 m every confirmed one is."""
+    frames = [(_det(0.1 * k, [(2.0, 1.0)]), _truth([(3.5, 1.0)])) for k in range(8)]
+    default = compare_reid(frames, track)
+    assert default == compare_reid(frames, track, match_threshold_m=1.0)
+    assert default["reid_on"].n_matches == 0
+    wide = compare_reid(frames, track, match_threshold_m=2.0)
+    assert wide["reid_on"].n_matches == 8 - (track.confirm_hits - 1)
+
