@@ -278,10 +278,7 @@ class AuditWriter:
         record = {**body, "kind": kind, "seq": self.seq + 1, "prev": self.head}
         digest = record_hash(self.head, record)
         line = canonical_json({**record, "hash": digest}) + b"\n"
-        view = memoryview(line)
-        while view:
-            written = os.write(self._fd, view)
-            view = view[written:]
+        _write_all(self._fd, line)
         self.seq += 1
         self.head = digest
         self._unsynced += 1
@@ -315,9 +312,15 @@ class AuditWriter:
             message = anchor_message(self.header_hash, self.seq, self.head, closed)
             anchor["signature"] = base64.b64encode(self.key.sign(message)).decode("ascii")
         tmp = self.anchor.with_name(self.anchor.name + ".tmp")
-        tmp.write_bytes(anchor_bytes(anchor))
-        with tmp.open("rb") as handle:
-            os.fsync(handle.fileno())
+        # A leftover of a crash, or a link planted there, is removed, never written through;
+        # O_EXCL refuses whatever appears there meanwhile (a link included: it is not followed).
+        tmp.unlink(missing_ok=True)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        try:
+            _write_all(fd, anchor_bytes(anchor))
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.replace(tmp, self.anchor)
         dir_fd = os.open(self.anchor.parent, os.O_RDONLY)
         try:
@@ -333,6 +336,14 @@ class AuditWriter:
         self.sync(closed=True)
         self.closed = True
         os.close(self._fd)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """Write all of ``data`` to ``fd``, however few bytes each write takes."""
+    view = memoryview(data)
+    while view:
+        written = os.write(fd, view)
+        view = view[written:]
 
 
 class BackgroundAuditWriter:
