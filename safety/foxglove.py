@@ -215,18 +215,31 @@ class McapRecorder:
 
     def _scan(self, scene: CycleScene, scan: Scan) -> Any:
         angles = scan.angles_rad
-        step = float(angles[1] - angles[0]) if scan.n_beams > 1 else 0.0
-        ranges = np.nan_to_num(scan.ranges_m, nan=np.inf).astype(np.float32)
+        ranges = np.nan_to_num(scan.ranges_m, nan=np.inf)
+        step = 0.0
+        if scan.n_beams > 1:
+            # LaserScan puts beam i at angle_min + i * angle_increment. Each beam goes to the
+            # nearest point of a grid at the median spacing, so the beams of dropped frames stay
+            # a gap (no return) and later beams keep their direction; where two beams meet one
+            # point the nearer return is kept. A scan whose angles turn back (not one sweep) is
+            # written beam by beam as it came.
+            step = float(np.median(np.diff(angles)))
+            index = np.rint((angles - angles[0]) / step).astype(np.int64) if step else None
+            if index is not None and np.all(np.diff(index) >= 0):
+                grid = np.full(int(index[-1]) + 1, np.inf)
+                np.minimum.at(grid, index, ranges)
+                ranges = grid
+        first = float(angles[0]) if scan.n_beams else 0.0
         return self._t("sensor_msgs/msg/LaserScan")(
             header=self._header(scan.stamp_s, "laser"),
-            angle_min=float(angles[0]) if scan.n_beams else 0.0,
-            angle_max=float(angles[-1]) if scan.n_beams else 0.0,
+            angle_min=first,
+            angle_max=first + step * max(ranges.shape[0] - 1, 0),
             angle_increment=step,
             time_increment=float(scan.beam_period_s),
-            scan_time=float(scan.beam_period_s * max(scan.n_beams - 1, 0)),
+            scan_time=float(scan.beam_period_s * max(ranges.shape[0] - 1, 0)),
             range_min=0.0,
             range_max=float(np.nanmax(scan.ranges_m, initial=0.0)),
-            ranges=ranges,
+            ranges=ranges.astype(np.float32),
             intensities=np.zeros(0, dtype=np.float32),
         )
 
