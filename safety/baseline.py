@@ -84,8 +84,6 @@ class Nav2Baseline:
     """The baseline policy for one configuration and parameter file (module docstring)."""
 
     def __init__(self, config: SafecaseConfig, params: Nav2Params) -> None:
-        self.config = config
-        self.params = params
         self.scan_filter = RangeFilter(config.scan)
         self.command_mps = float(config.stopping.robot_max_speed_mps)
         geometry = config.geometry

@@ -375,7 +375,7 @@ def test_a_log_that_cannot_be_created_names_the_reason(tmp_path: Path) -> None:
 
 
 @pytest.mark.requirement("SR-AUD-1", kind="example", code=CODE)
-def test_missing_folders_are_made_and_the_log_is_readable_by_all_writable_by_owner(
+def test_missing_folders_are_made_and_the_log_and_anchor_are_readable_by_all_writable_by_owner(
     tmp_path: Path,
 ) -> None:
     log = tmp_path / "a" / "b" / "run.log"
@@ -385,6 +385,8 @@ def test_missing_folders_are_made_and_the_log_is_readable_by_all_writable_by_own
     finally:
         os.umask(previous)
     assert stat.S_IMODE(log.stat().st_mode) == 0o644
+    # Its anchor too: anyone may check the head, only the writer rewrites it.
+    assert stat.S_IMODE((log.parent / "run.log.head").stat().st_mode) == 0o644
     # A folder that exists already is fine too.
     _writer(log.parent / "second.log").close()
 

@@ -8,6 +8,9 @@ cycle is stepped through for each command it can give.
 
 from __future__ import annotations
 
+import time
+import warnings
+
 import numpy as np
 import pytest
 
@@ -240,3 +243,25 @@ def test_a_cycle_gives_stop_slow_or_proceed_and_records_its_clock(config: Safeca
     timed = base.step(CycleInput.standing(None, 20.0, config))
     assert timed.record.observation.cycle_duration_s == timed.wall_s["nav2"]
     assert timed.command.stamp_s == 20.0 + timed.wall_s["nav2"]
+
+
+@pytest.mark.requirement("SR-AVL-4", kind="example", code=CODE)
+def test_a_cycle_is_charged_the_thread_cpu_time_between_its_start_and_its_end(
+    config: SafecaseConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The thread's CPU clock read at the start and at the end of the cycle: 250 us apart."""
+    base = _baseline(config, _circle("Stop", "stop", 1.0), '"Stop"')
+    readings = iter([7_000_000_000, 7_000_250_000])
+    monkeypatch.setattr(time, "thread_time_ns", lambda: next(readings))
+    out = base.step(CycleInput.standing(_scan(0.0, 5.0), 0.05, config, charge_s=0.05))
+    assert out.cpu_s == pytest.approx(250e-6, abs=1e-12)
+
+
+def test_points_inside_divides_by_a_flat_edge_without_a_warning() -> None:
+    """A horizontal edge divides by zero (0/0 on its own height); the crossing test never uses
+    that quotient, so no floating-point warning may escape it."""
+    square = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        inside = points_inside(square, np.array([1.0, 1.0, 3.0]), np.array([0.0, 1.0, 2.0]))
+    assert inside.tolist() == [False, True, False]
