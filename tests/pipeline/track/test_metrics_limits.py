@@ -21,7 +21,8 @@ def test_a_frame_needs_one_position_per_unique_id() -> None:
     assert frame.ids.dtype == np.int64
     # Ids handed over as floats (as a JSON reader gives them) are kept as integers.
     floats = PositionsFrame(np.array([6.0, 7.0]), np.zeros((2, 2)))
-    assert (floats.ids.dtype, floats.ids.tolist()) == (np.int64, [6, 7])
+    assert floats.ids.dtype == np.int64
+    assert floats.ids.tolist() == [6, 7]
 
 
 def test_truth_and_hypotheses_must_have_the_same_number_of_frames() -> None:

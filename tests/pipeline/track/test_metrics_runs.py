@@ -103,4 +103,3 @@ def test_reidentification_is_scored_with_a_one_metre_match_by_default(track: Tra
     assert default["reid_on"].n_matches == 0
     wide = compare_reid(frames, track, match_threshold_m=2.0)
     assert wide["reid_on"].n_matches == 8 - (track.confirm_hits - 1)
-
