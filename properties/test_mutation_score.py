@@ -66,6 +66,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/nav2/obligations.py",
     "safety/nav2/params.py",
     "safety/nav2/reader.py",
+    "safety/nav2/solver.py",
     "safety/nav2/usage.py",
     "safety/nav2/verdicts.py",
 )
