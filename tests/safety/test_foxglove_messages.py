@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from pipeline.types import Action, Scan
+from properties.cycle_scenes import empty_scene
 from safety.foxglove import TOPICS, McapRecorder
 from safety.foxglove_scene import CycleScene
 
@@ -89,31 +90,7 @@ FULL = CycleScene(
 )
 
 # A cycle that stopped before perception: nothing but the pose, the command and the verdicts.
-BARE = CycleScene(
-    stamp_s=13.0,
-    robot_pose=(0.0, 0.0, 0.0),
-    mount=(0.0, 0.0, 0.0),
-    scan=None,
-    points_xy_m=np.zeros((2, 0)),
-    point_labels=np.zeros(0, dtype=np.int64),
-    track_id=np.zeros(0, dtype=np.int64),
-    track_xy_m=np.zeros((2, 0)),
-    track_v_mps=np.zeros((2, 0)),
-    track_radius_m=np.zeros(0),
-    track_class=(),
-    envelopes=(),
-    envelope_tier=np.zeros(0, dtype=np.int64),
-    envelope_track=np.zeros(0, dtype=np.int64),
-    path_xy_m=np.zeros((0, 2)),
-    occupied=None,
-    costmap_origin_m=(0.0, 0.0),
-    costmap_resolution_m=1.0,
-    action=Action.PROCEED,
-    speed_mps=1.0,
-    reasons=(),
-    verdicts=(("clock", Action.PROCEED, ""),),
-    record={},
-)
+BARE = empty_scene(stamp_s=13.0, verdicts=(("clock", Action.PROCEED, ""),))
 
 
 def _record(path: Path, *scenes: CycleScene) -> Messages:

@@ -28,6 +28,7 @@ from pipeline.config import default_config
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.source import SimSource
 from pipeline.types import Action, Scan
+from properties.cycle_scenes import empty_scene
 from safety.audit.log import anchor_path
 from safety.audit.verify import verify_log
 from safety.foxglove import TOPICS, McapRecorder
@@ -102,29 +103,9 @@ DRAWN = CycleScene(
 )
 
 # Nothing but the robot (facing +x at (0.5, -0.5)) and a command without reasons.
-BARE = CycleScene(
+BARE = empty_scene(
     stamp_s=4.0,
     robot_pose=(0.5, -0.5, 0.0),
-    mount=(0.0, 0.0, 0.0),
-    scan=None,
-    points_xy_m=np.zeros((2, 0)),
-    point_labels=np.zeros(0, dtype=np.int64),
-    track_id=np.zeros(0, dtype=np.int64),
-    track_xy_m=np.zeros((2, 0)),
-    track_v_mps=np.zeros((2, 0)),
-    track_radius_m=np.zeros(0),
-    track_class=(),
-    envelopes=(),
-    envelope_tier=np.zeros(0, dtype=np.int64),
-    envelope_track=np.zeros(0, dtype=np.int64),
-    path_xy_m=np.zeros((0, 2)),
-    occupied=None,
-    costmap_origin_m=(0.0, 0.0),
-    costmap_resolution_m=1.0,
-    action=Action.PROCEED,
-    speed_mps=1.0,
-    reasons=(),
-    verdicts=(),
     record={"command": {"action": "PROCEED", "speed_mps": 1.0}},
 )
 
