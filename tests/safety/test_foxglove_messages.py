@@ -117,7 +117,9 @@ def _only(messages: Messages, topic: str) -> Any:
     return entry[1]
 
 
-@pytest.fixture(scope="module")
+# Per test, not per module: mutation testing credits the code a fixture runs to the test that
+# set it up, so a module-scoped recording would be checked by its first test only.
+@pytest.fixture
 def full(tmp_path_factory: pytest.TempPathFactory) -> Messages:
     return _record(tmp_path_factory.mktemp("full") / "full.mcap", FULL)
 

@@ -120,7 +120,10 @@ def _write(path: Path, *scenes: CycleScene) -> Path:
 # -- cycle_stamps, read_cycle, read_records -----------------------------------------------------
 
 
-@pytest.fixture(scope="module")
+# Per test, not per module (except the closed-loop run below): mutation testing credits the
+# code a fixture runs to the test that set it up, so a module-scoped drawing would be checked by
+# its first test only.
+@pytest.fixture
 def three(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Cycles at 1 s (with scan and costmap), 1 ns later (without) and at 2 s (with)."""
     return _write(
@@ -177,12 +180,12 @@ def test_a_recording_without_cycles_has_no_cycle_to_read(tmp_path: Path) -> None
 # -- cycle_figure -------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def drawn(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     return read_cycle(_write(tmp_path_factory.mktemp("drawn") / "drawn.mcap", DRAWN))
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def bare(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     return read_cycle(_write(tmp_path_factory.mktemp("bare") / "bare.mcap", BARE))
 
@@ -197,12 +200,12 @@ def _figure(cycle: dict[str, Any]) -> Iterator[Figure]:
         plt.close(fig)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def fig(drawn: dict[str, Any]) -> Iterator[Figure]:
     yield from _figure(drawn)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def bare_fig(bare: dict[str, Any]) -> Iterator[Figure]:
     yield from _figure(bare)
 
