@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from scipy.stats import beta
 
 from properties.campaign_rows import campaign_row
@@ -133,6 +134,11 @@ def test_the_slowest_cycles_leave_out_runs_without_timings() -> None:
     assert fewest == 44
     nothing, none = cpu_block_maxima([rows[3]])
     assert (nothing.tolist(), none) == ([], 0)
+    # A run of one cycle has timings like any other.
+    single, one = cpu_block_maxima(
+        [_row("a", 5, cpu_ms={"p50": 1.0, "p99": 1.0, "max": 7.0}, cycles=1)]
+    )
+    assert (single.tolist(), one) == (pytest.approx([0.007], abs=1e-15), 1)
 
 
 def test_the_command_mix_sums_every_cycle() -> None:
@@ -158,6 +164,9 @@ def test_availability_counts_only_rows_with_the_shadow() -> None:
     assert none == Availability(0, 0, 0, 0, 0, None, None)
     assert (none.stop_share, none.nuisance_share) == (0.0, 0.0)
     no_cycles = Availability(1, 0, 0, 0, 0, None, None)
+    # A run that never stopped may have no STOP entry at all.
+    never = availability([_row("a", 0, commands={"PROCEED": 40, "SLOW": 10})])
+    assert (never.cycles, never.stop_cycles) == (50, 0)
     assert (no_cycles.stop_share, no_cycles.nuisance_share) == (0.0, 0.0)
 
 
@@ -195,6 +204,17 @@ def test_the_closest_approach_figure_is_the_empirical_distribution() -> None:
     assert ax.get_title() == "closest approach, 3 runs"
     assert ax.get_xlabel() == "closest approach in the run [m]"
     assert ax.get_ylabel() == "share of runs at or below"
+    assert tuple(fig.get_size_inches()) == pytest.approx((6.4, 3.6))
+    grid = ax.get_xgridlines() + ax.get_ygridlines()
+    assert all(line.get_visible() and line.get_alpha() == 0.3 for line in grid)
+    # The legend sits in the lower right corner of the axes wherever the curve rises (here at
+    # its right edge, where matplotlib's "best" place would not put it).
+    far = closest_figure([_row("a", i, closest_m=2.9 + 0.05 * i) for i in range(3)])
+    FigureCanvasAgg(far).draw()
+    (far_ax,) = far.axes
+    legend_box, axes_box = far_ax.get_legend().get_window_extent(), far_ax.get_window_extent()
+    assert legend_box.x1 > axes_box.x1 - 0.1 * axes_box.width
+    assert legend_box.y0 < axes_box.y0 + 0.1 * axes_box.height
     assert closest_figure(_rows(), "mine").axes[0].get_title() == "mine"
     empty = closest_figure([failed_row(Encounter("a", 0, 5.0), "E")])
     assert [line.get_label() for line in empty.axes[0].get_lines()] == ["contact"]
