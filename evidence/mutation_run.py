@@ -54,6 +54,8 @@ PACKAGES: tuple[str, ...] = ("pipeline", "safety", "evidence", "properties")
 # Copied beside the packages: the tests, the configurations some of them read, and the lock
 # file the evidence plugin records.
 ALSO_COPY: tuple[str, ...] = ("tests", "examples", "requirements.lock")
+TIMEOUT_CONSTANT_S = 10.0
+"""Seconds added to a mutant's estimated test time before mutmut's CPU limit (x 30) applies."""
 # mutmut's exit codes per mutant (mutmut.stats.status_by_exit_code), folded to what counts.
 _STATUS_BY_EXIT: Mapping[int | None, Status] = {
     1: "killed",
@@ -120,6 +122,10 @@ def _mutmut_config(target: Target, tests: Sequence[str], pytest_args: Sequence[s
         "use_git_change_detection = false\n"
         'on_dependency_change = "ignore"\n'
         "use_setproctitle = false\n"
+        # mutmut limits a mutant's CPU time to 30 x (its tests' estimate + this constant), and
+        # the estimate times the test bodies only: a fixture that runs a scenario is not in it,
+        # so with mutmut's 1 s a mutant whose tests set one up could be killed for the fixture.
+        f"timeout_constant = {TIMEOUT_CONSTANT_S}\n"
     )
 
 

@@ -23,7 +23,13 @@ from evidence.mutation import (
     select_tests,
     write_result,
 )
-from evidence.mutation_run import _failing_before, _function_name, main
+from evidence.mutation_run import (
+    TIMEOUT_CONSTANT_S,
+    _failing_before,
+    _function_name,
+    _mutmut_config,
+    main,
+)
 
 CODE = ["evidence/mutation.py", "evidence/mutation_run.py"]
 TARGET = Target("pkg/sub/mod.py", "safety")
@@ -250,3 +256,19 @@ def test_the_command_line_refuses_bad_input_in_one_line(
     (tmp_path / "safety/mutation-equivalents.toml").write_text('[equivalent]\n"k" = {}\n')
     assert main(["--root", str(tmp_path), "status"]) == 2
     assert "needs its reason" in capsys.readouterr().err
+
+
+def test_mutmut_reads_the_timeout_room_left_for_fixtures(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The CPU limit's constant reaches mutmut (its own reader of pyproject.toml): mutmut times
+    only test bodies, so without it a mutant could be counted killed for its fixtures' time."""
+    from mutmut.configuration import _config_reader
+
+    target = Target("safety/model/governor.py", "safety")
+    text = _mutmut_config(target, ["tests/test_a.py"], ["-q"])
+    (tmp_path / "pyproject.toml").write_text(text, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    read = _config_reader()
+    assert read("timeout_constant", 1.0) == TIMEOUT_CONSTANT_S >= 10.0
+    assert read("only_mutate", []) == [target.path]
