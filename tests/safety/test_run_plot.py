@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
+from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
 from pipeline.config import SafecaseConfig
@@ -176,3 +177,42 @@ def test_a_run_without_objects_has_no_separation_legend(safecase_config: Safecas
     bottom = run_figure(_summary(empty)).axes[1]
     assert bottom.get_legend() is None
     assert bottom.get_lines() == []
+
+
+def _in_upper_right(ax: Axes) -> bool:
+    legend = ax.get_legend()
+    assert legend is not None
+    box, frame = legend.get_window_extent(), ax.get_window_extent()
+    return bool(box.x1 > frame.x1 - 0.1 * frame.width and box.y1 > frame.y1 - 0.1 * frame.height)
+
+
+@pytest.mark.requirement("SR-RUN-1", kind="example", code=CODE)
+def test_the_figure_is_laid_out_for_reading(safecase_config: SafecaseConfig) -> None:
+    """What a reader of docs/ sees beyond the series: the size, one time axis for both panels,
+    the marks and the shading placed on the speed panel's height (not on its speeds), the
+    legends in the upper right corner in small type, the contact drawn thin and noted in red."""
+    sim = _driven(safecase_config, "reversing_forklift_aisle", 1.0)
+    fig = run_figure(_summary(sim), nuisance_t_s=(1.0,))
+    top, bottom = fig.axes
+    assert tuple(fig.get_size_inches()) == (10.0, 6.5)
+    assert top.get_shared_x_axes().joined(top, bottom)
+    marks = top.get_lines()[2]
+    assert marks.get_markersize() == 4
+    assert marks.get_transform() is top.get_xaxis_transform()
+    shade = _shaded(fig)
+    assert shade.get_transform() is top.get_xaxis_transform()
+    assert shade.get_facecolor()[0].tolist() == pytest.approx([*to_rgb("tab:red"), 0.12])
+    # Standing, the separations leave the lower middle free, where matplotlib's "best" place
+    # would put the legend.
+    standing = run_figure(_summary(_driven(safecase_config, "reversing_forklift_aisle", 0.0)))
+    for figure in (fig, standing):
+        figure.canvas.draw()
+        for ax in figure.axes:
+            legend = ax.get_legend()
+            assert legend is not None
+            assert {text.get_fontsize() for text in legend.get_texts()} == {8.0}
+            assert _in_upper_right(ax)
+    (contact,) = bottom.get_lines()[len(sim.world.objects) :]
+    assert contact.get_linewidth() == 1
+    (note,) = bottom.texts
+    assert (note.get_color(), note.get_fontsize()) == ("red", 8.0)
