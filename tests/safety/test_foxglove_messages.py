@@ -369,6 +369,10 @@ def test_a_clockwise_scan_and_a_scan_that_turns_back_are_written_beam_by_beam(
     back = _scan_of(tmp_path, "back", [0.0, 0.25, 0.5, 0.1], [1.0, 2.0, 3.0, 4.0])
     assert (back.angle_min, back.angle_increment, back.angle_max) == (0.0, 0.25, 0.75)
     assert np.asarray(back.ranges).tolist() == [1.0, 2.0, 3.0, 4.0]
+    # Most beams at one angle (a median spacing of 0): no grid to place them on.
+    stuck = _scan_of(tmp_path, "stuck", [0.0, 0.0, 0.0, 0.25], [1.0, 2.0, 3.0, 4.0])
+    assert (stuck.angle_min, stuck.angle_increment, stuck.angle_max) == (0.0, 0.0, 0.0)
+    assert np.asarray(stuck.ranges).tolist() == [1.0, 2.0, 3.0, 4.0]
 
 
 @pytest.mark.requirement("SR-RUN-7", kind="example", code=CODE)
