@@ -20,6 +20,7 @@ __all__ = [
     "EXCLUDED_TESTS",
     "LEFT_OUT_FIXTURES",
     "LEFT_OUT_KINDS",
+    "LEFT_OUT_TESTS",
     "TARGETS",
     "Target",
     "left_out",
@@ -171,6 +172,23 @@ LEFT_OUT_FIXTURES: Mapping[str, str] = {
     "mutmut would count as a kill (a timeout)",
 }
 
+# Tests whose body starts a Dask cluster in the test's own process (the campaign command run in
+# process with its workers, the availability campaign on a LocalCluster), with why.
+_IN_PROCESS_CLUSTER = (
+    "starts a Dask LocalCluster in the test's own process, inside mutmut's forked child, where "
+    "it can hang; mutmut then counts the mutant as killed (a timeout) whatever it changed"
+)
+LEFT_OUT_TESTS: Mapping[str, str] = {
+    "tests/safety/test_campaign.py::test_the_command_runs_reports_and_resumes": (
+        _IN_PROCESS_CLUSTER
+    ),
+    "tests/safety/test_campaign.py::test_ctrl_c_keeps_the_finished_runs_and_says_how_to_resume": (
+        _IN_PROCESS_CLUSTER
+    ),
+    "tests/safety/test_availability_workers.py::"
+    "test_two_workers_give_the_same_comparisons_in_the_same_order": _IN_PROCESS_CLUSTER,
+}
+
 
 def _marker_kind(decorator: ast.expr) -> str | None:
     """The ``kind=`` of a ``@pytest.mark.requirement(...)`` decorator, else None."""
@@ -187,8 +205,9 @@ def _marker_kind(decorator: ast.expr) -> str | None:
 
 def left_out(tests: Sequence[str], root: Path) -> list[str]:
     """Node IDs (``file::test``) of the tests in ``tests`` that mutants are not run against:
-    those marked ``kind="campaign"`` or ``kind="measurement"`` (long, or timing-dependent) and
-    those asking for a fixture of :data:`LEFT_OUT_FIXTURES`."""
+    those marked ``kind="campaign"`` or ``kind="measurement"`` (long, or timing-dependent),
+    those asking for a fixture of :data:`LEFT_OUT_FIXTURES` and those of
+    :data:`LEFT_OUT_TESTS`."""
     ids = []
     for name in tests:
         tree = _parsed(root / name)
@@ -197,8 +216,10 @@ def left_out(tests: Sequence[str], root: Path) -> list[str]:
                 continue
             kinds = {_marker_kind(d) for d in node.decorator_list}
             fixtures = {arg.arg for arg in node.args.args}
-            if kinds & LEFT_OUT_KINDS or fixtures & LEFT_OUT_FIXTURES.keys():
-                ids.append(f"{name}::{node.name}")
+            node_id = f"{name}::{node.name}"
+            long_or_timed = bool(kinds & LEFT_OUT_KINDS)
+            if long_or_timed or fixtures & LEFT_OUT_FIXTURES.keys() or node_id in LEFT_OUT_TESTS:
+                ids.append(node_id)
     return ids
 
 

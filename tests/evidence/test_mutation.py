@@ -30,6 +30,7 @@ from evidence.mutation_run import (
     _mutmut_config,
     main,
 )
+from evidence.mutation_targets import LEFT_OUT_TESTS
 
 CODE = ["evidence/mutation.py", "evidence/mutation_run.py"]
 TARGET = Target("pkg/sub/mod.py", "safety")
@@ -272,3 +273,20 @@ def test_mutmut_reads_the_timeout_room_left_for_fixtures(
     read = _config_reader()
     assert read("timeout_constant", 1.0) == TIMEOUT_CONSTANT_S >= 10.0
     assert read("only_mutate", []) == [target.path]
+
+
+@pytest.mark.requirement("SR-EVD-5", kind="example", code=CODE)
+def test_tests_that_start_a_cluster_in_process_are_left_out_by_name(tmp_path: Path) -> None:
+    """Listed in LEFT_OUT_TESTS: left out where their file is selected, and only they."""
+    listed = sorted(LEFT_OUT_TESTS)
+    for node_id in listed:
+        name, test = node_id.split("::")
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        with (tmp_path / name).open("a", encoding="utf-8") as file:
+            file.write(f"def {test}(tmp_path): ...\ndef {test}_too(tmp_path): ...\n")
+    files = sorted({node_id.split("::")[0] for node_id in listed})
+    assert sorted(left_out(files, tmp_path)) == listed
+    # Every listed test exists where it is said to be, so the list cannot go stale unseen.
+    for node_id in listed:
+        name, test = node_id.split("::")
+        assert f"def {test}(" in (Path(__file__).resolve().parents[2] / name).read_text()
