@@ -61,6 +61,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/cycle.py",
     "safety/baseline.py",
     "safety/campaign_plan.py",
+    "safety/campaign_stats.py",
     "safety/run_plot.py",
     "safety/foxglove.py",
     "safety/foxglove_scene.py",
