@@ -83,3 +83,34 @@ def test_the_braking_the_proof_assumes_is_the_runtime_s_own(classifier: Classifi
     out = rt.step(CycleInput.standing(_scan(10.0), 10.1, CONFIG, charge_s=0.01))
     assert out.record.observation.braking_min_mps2 == rt.params.decel_min_mps2
     assert out.record.observation.braking_min_mps2 == CONFIG.stopping.decel_min_mps2
+
+
+@pytest.mark.requirement("SR-RUN-6", kind="example", code=CODE)
+def test_a_robot_braking_too_weakly_under_a_stop_is_flagged_from_its_odometry(
+    classifier: Classifier,
+) -> None:
+    """A wall 0.5 m ahead keeps a STOP in force from 10.1 s while the robot slows by only
+    0.1 m/s^2: once three odometry samples lie after the STOP reached the actuator, the record
+    holds the measured deceleration and the braking monitor names the assumption."""
+    angles = np.linspace(-math.pi, math.pi, 1080, endpoint=False)
+    with np.errstate(divide="ignore"):
+        wall = np.where(np.cos(angles) > 0.05, 0.5 / np.cos(angles), np.inf)
+    wall = np.where(wall < 20.0, wall, np.inf)
+    rt = Runtime(CONFIG, classifier=classifier)
+    first = rt.step(CycleInput.standing(_scan(10.1, wall), 10.11, CONFIG, charge_s=0.01))
+    assert first.command.action is Action.STOP
+    measured = []
+    for k in range(1, 9):
+        t = 10.1 + 0.1 * k
+        x = 1.0 * (t - 10.1) - 0.05 * (t - 10.1) ** 2  # 1 m/s, slowing at 0.1 m/s^2
+        inp = replace(
+            CycleInput.standing(_scan(t, wall), t + 0.01, CONFIG, charge_s=0.01),
+            robot_pose=(x, 0.0, 0.0),
+        )
+        out = rt.step(inp)
+        measured.append(out.record.observation.braking_decel_mps2)
+    decel = [d for d in measured if d is not None]
+    assert decel, measured
+    assert decel[-1] == pytest.approx(0.1, abs=1e-6)
+    assert out.command.action is Action.STOP
+    assert any("braking" in r for r in out.command.reasons), out.command.reasons
