@@ -1,6 +1,7 @@
 """The runtime hands the monitors what the cycle saw: the blocked beams of a blinded scanner,
-an incomplete scan, the previous scan's stamp and the braking the stopping proof assumes, each
-read back from the record's observation and from the command it gave (SR-FUS-2, SR-RUN-6)."""
+an incomplete scan, the previous scan's stamp, and the braking the stopping proof assumes beside
+the braking measured under a STOP, each read back from the record's observation and from the
+command it gave (SR-FUS-2, SR-RUN-6)."""
 
 from __future__ import annotations
 
