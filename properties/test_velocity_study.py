@@ -48,7 +48,8 @@ def test_track_velocity_against_the_truth(safecase_config: SafecaseConfig) -> No
     assert (rows.error_mps >= np.abs(rows.true_speed_mps - rows.speed_mps) - 1e-12).all()
     names_of = np.array(rows.class_name, dtype=object)
     jack, person = rows.where(names_of == "pallet_jack"), rows.where(names_of == "person")
-    assert jack.error_mps.size >= 50 and person.error_mps.size >= 50
+    assert jack.error_mps.size >= 50
+    assert person.error_mps.size >= 50
     assert float(np.median(jack.error_mps)) <= 0.1
     assert float(np.mean(jack.bound_holds)) >= 0.99
     assert np.median(person.error_mps) > np.median(jack.error_mps)
