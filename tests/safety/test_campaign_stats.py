@@ -210,9 +210,12 @@ def test_the_closest_approach_figure_is_the_empirical_distribution() -> None:
     # The legend sits in the lower right corner of the axes wherever the curve rises (here at
     # its right edge, where matplotlib's "best" place would not put it).
     far = closest_figure([_row("a", i, closest_m=2.9 + 0.05 * i) for i in range(3)])
-    FigureCanvasAgg(far).draw()
+    FigureCanvasAgg(far)
+    far.canvas.draw()
     (far_ax,) = far.axes
-    legend_box, axes_box = far_ax.get_legend().get_window_extent(), far_ax.get_window_extent()
+    legend = far_ax.get_legend()
+    assert legend is not None
+    legend_box, axes_box = legend.get_window_extent(), far_ax.get_window_extent()
     assert legend_box.x1 > axes_box.x1 - 0.1 * axes_box.width
     assert legend_box.y0 < axes_box.y0 + 0.1 * axes_box.height
     assert closest_figure(_rows(), "mine").axes[0].get_title() == "mine"

@@ -201,7 +201,8 @@ def test_the_figure_is_laid_out_for_reading(safecase_config: SafecaseConfig) -> 
     assert marks.get_transform() is top.get_xaxis_transform()
     shade = _shaded(fig)
     assert shade.get_transform() is top.get_xaxis_transform()
-    assert shade.get_facecolor()[0].tolist() == pytest.approx([*to_rgb("tab:red"), 0.12])
+    face = np.asarray(shade.get_facecolor(), dtype=np.float64)
+    assert face[0].tolist() == pytest.approx([*to_rgb("tab:red"), 0.12])
     # Standing, the separations leave the lower middle free, where matplotlib's "best" place
     # would put the legend.
     standing = run_figure(_summary(_driven(safecase_config, "reversing_forklift_aisle", 0.0)))
