@@ -7,7 +7,9 @@ result on any worker and in any order. :func:`open_client` connects to ``schedul
 single-threaded processes (the simulator and the runtime hold the GIL; processes, not threads,
 give the parallelism). :func:`as_done` submits every task and yields each result as it
 arrives; :func:`in_order` yields them in submission order for callers whose output must not
-depend on timing (training rows).
+depend on timing (training rows). Without a client (``None``) both run every task here, one
+after another, in submission order: for a debugger or a profiler, and for tests that must not
+start processes of their own.
 
 Faults: a worker that dies mid-task (killed, out of memory) loses its task to the scheduler,
 which reruns it on another worker up to ``retries`` times (the scheduler's count of suspicious
@@ -111,17 +113,27 @@ def _submit(client: Client, fn: Callable[[T], R], items: Sequence[T]) -> list[Fu
     ]
 
 
+def _here(fn: Callable[[T], R], items: Iterable[T]) -> Iterator[Done[R]]:
+    """Every task run in this process, in order (no client: module docstring)."""
+    for index, item in enumerate(items):
+        yield _guarded(fn, index, item)
+
+
 def as_done(
-    client: Client,
+    client: Client | None,
     fn: Callable[[T], R],
     items: Iterable[T],
 ) -> Iterator[Done[R]]:
-    """``fn`` applied to every item on the cluster, each outcome as soon as it arrives.
+    """``fn`` applied to every item on the cluster, each outcome as soon as it arrives
+    (without a client: here, in order).
 
     ``fn`` must be importable by the workers (a module-level function) and seeded by its item
     alone. A task whose workers died more often than the cluster allows (``retries`` of
     :func:`open_client`; a remote scheduler's own setting) comes back as a :class:`TaskFailed`.
     """
+    if client is None:
+        yield from _here(fn, items)
+        return
     futures = _submit(client, fn, list(items))
     index_of = {future.key: i for i, future in enumerate(futures)}
     for future in as_completed(futures):
@@ -130,12 +142,15 @@ def as_done(
 
 
 def in_order(
-    client: Client,
+    client: Client | None,
     fn: Callable[[T], R],
     items: Iterable[T],
 ) -> Iterator[Done[R]]:
     """As :func:`as_done`, but yielded in the order of ``items`` (each as soon as it and every
     one before it are done), so the output does not depend on the workers' timing."""
+    if client is None:
+        yield from _here(fn, items)
+        return
     futures = _submit(client, fn, list(items))
     for index, future in enumerate(futures):
         yield _outcome(future, index)

@@ -46,8 +46,11 @@ __all__ = [
     "RunMetrics",
     "Shadow",
     "binding_kind",
+    "common_progress_m",
     "compare",
     "compare_all",
+    "our_runtime",
+    "progress_share",
     "run_baseline",
     "run_metrics",
     "run_oracle",
@@ -173,6 +176,23 @@ def _arc_at(result: SimResult, t_s: float) -> float:
     return float(np.interp(t_s, log["t_s"], log["arc_m"]))
 
 
+def common_progress_m(run: RunSummary, oracle: RunSummary) -> tuple[float, float]:
+    """``run``'s and ``oracle``'s arc length [m] at the end of the shorter of the two (module
+    docstring: a run ends early at a contact)."""
+    mine, best = run.sim, oracle.sim
+    assert mine is not None  # run_simulation always sets it
+    assert best is not None
+    common = min(float(mine.ego_log["t_s"][-1]), float(best.ego_log["t_s"][-1]))
+    return _arc_at(mine, common), _arc_at(best, common)
+
+
+def progress_share(run: RunSummary, oracle: RunSummary) -> float:
+    """``run``'s progress over ``oracle``'s over the time both lasted (1 when the oracle did
+    not move either); SR-AVL-1."""
+    mine, theirs = common_progress_m(run, oracle)
+    return 1.0 if theirs <= 0.0 else mine / theirs
+
+
 @dataclass
 class Comparison:
     """Ours, the oracle and the baseline on one scenario and seed, plus our shadow oracle."""
@@ -196,12 +216,7 @@ class Comparison:
     def progress_share(self, role: str = "ours") -> float:
         """``role``'s progress over the oracle's, over the time both lasted (1 when the oracle
         did not move either)."""
-        mine, best = self.runs()[role].sim, self.oracle.sim
-        assert mine is not None
-        assert best is not None
-        common = min(float(mine.ego_log["t_s"][-1]), float(best.ego_log["t_s"][-1]))
-        theirs = _arc_at(best, common)
-        return 1.0 if theirs <= 0.0 else _arc_at(mine, common) / theirs
+        return progress_share(self.runs()[role], self.oracle)
 
     def time_to_goal_share(self) -> float | None:
         """Our time to goal over the oracle's (None unless both reached it)."""
@@ -268,11 +283,22 @@ def run_ours(
     classifier: Classifier,
     levers: Levers | None = None,
 ) -> tuple[RunSummary, Shadow]:
-    """``sim`` in closed loop with the runtime as configured (``levers``: the runtime's), and
-    the shadow oracle that decided on its frames."""
+    """``sim`` in closed loop with :func:`our_runtime`, and the shadow oracle that decided on
+    its frames."""
     shadow = Shadow.for_simulation(config, sim, classifier)
-    ours = Runtime(config, classifier=classifier, levers=levers, static_map=site_map(config, sim))
+    ours = our_runtime(config, sim, classifier, levers)
     return run_simulation(config, sim, runtime=ours, observe=shadow.observer(ours)), shadow
+
+
+def our_runtime(
+    config: SafecaseConfig,
+    sim: Simulation,
+    classifier: Classifier,
+    levers: Levers | None = None,
+) -> Runtime:
+    """The runtime as configured for ``sim`` (``levers``: the runtime's), with the site's map
+    (:func:`safety.run.site_map`, SR-AVL-8)."""
+    return Runtime(config, classifier=classifier, levers=levers, static_map=site_map(config, sim))
 
 
 def run_oracle(
@@ -367,12 +393,9 @@ class Campaign:
         """Sum of ``role``'s progress over the sum of the oracle's (over common times)."""
         mine = theirs = 0.0
         for c in self.comparisons:
-            a, b = c.runs()[role].sim, c.oracle.sim
-            assert a is not None
-            assert b is not None
-            common = min(float(a.ego_log["t_s"][-1]), float(b.ego_log["t_s"][-1]))
-            mine += _arc_at(a, common)
-            theirs += _arc_at(b, common)
+            a, b = common_progress_m(c.runs()[role], c.oracle)
+            mine += a
+            theirs += b
         return mine / theirs if theirs > 0 else 1.0
 
     def worst_progress_share(self) -> float:

@@ -40,7 +40,7 @@ from pipeline.classify.model import Classifier
 from pipeline.config import SafecaseConfig, config_hash
 from pipeline.errors import SafecaseError
 from pipeline.jsoncodec import dumps
-from safety.availability import Comparison, run_oracle, run_ours
+from safety.availability import our_runtime, progress_share, run_oracle, run_ours
 from safety.campaign_plan import (
     NAMED,
     Encounter,
@@ -48,8 +48,7 @@ from safety.campaign_plan import (
     encounter_simulation,
     known_scenario,
 )
-from safety.run import contact_speeds, run_simulation, site_map
-from safety.runtime import Runtime
+from safety.run import contact_speeds, run_simulation
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -60,6 +59,7 @@ __all__ = [
     "CampaignLog",
     "CampaignRow",
     "Encounter",
+    "cpu_summary_ms",
     "encounter_plan",
     "failed_row",
     "pending",
@@ -172,6 +172,19 @@ class CampaignRow:
         )
 
 
+def cpu_summary_ms(cpu_s: Sequence[float]) -> dict[str, float]:
+    """The median, 99th percentile and maximum [ms] of cycles' CPU times [s] (a row's
+    ``cpu_ms``); empty without cycles."""
+    cpu = np.asarray(cpu_s, dtype=float) * 1e3
+    if not cpu.size:
+        return {}
+    return {
+        "p50": float(np.percentile(cpu, 50)),
+        "p99": float(np.percentile(cpu, 99)),
+        "max": float(cpu.max()),
+    }
+
+
 def failed_row(encounter: Encounter, error: str) -> CampaignRow:
     """The row of an encounter that raised (or whose workers kept dying): counted, not lost."""
     return CampaignRow(encounter, 0, {}, 0, (), float("inf"), 0.0, 0.0, {}, error=error)
@@ -202,29 +215,16 @@ def run_encounter(
         causes = Counter(row[5] for row, flag in zip(watcher.rows, flags, strict=True) if flag)
         nuisance: int | None = sum(flags)
     else:
-        summary = run_simulation(
-            config,
-            sim,
-            runtime=Runtime(config, classifier=model, static_map=site_map(config, sim)),
-        )
+        summary = run_simulation(config, sim, runtime=our_runtime(config, sim, model))
         causes, nuisance = Counter(), None
     result = summary.sim
     assert result is not None  # run_simulation always sets it
     speeds = contact_speeds(result)
-    cpu = np.asarray(summary.cpu_s, dtype=float) * 1e3
     share = None
     if oracle:
-        best = run_oracle(config, encounter_simulation(config, encounter), model)
-        pair = Comparison(
-            encounter.scenario,
-            encounter.seed,
-            summary,
-            best,
-            summary,  # no baseline runs in a campaign; nothing here reads its slot
-            watcher,
-            sim.lidar.spec.scan_period_s,
+        share = progress_share(
+            summary, run_oracle(config, encounter_simulation(config, encounter), model)
         )
-        share = pair.progress_share()
     return CampaignRow(
         encounter=encounter,
         cycles=summary.cycles,
@@ -234,15 +234,7 @@ def run_encounter(
         closest_m=float(np.min(result.min_separation_m, initial=np.inf)),
         progress_m=float(result.ego_log["arc_m"][-1]),
         route_m=float(result.ego_spec.route.length_m),
-        cpu_ms=(
-            {
-                "p50": float(np.percentile(cpu, 50)),
-                "p99": float(np.percentile(cpu, 99)),
-                "max": float(cpu.max()),
-            }
-            if cpu.size
-            else {}
-        ),
+        cpu_ms=cpu_summary_ms(summary.cpu_s),
         nuisance_cycles=nuisance,
         nuisance_causes=dict(causes),
         progress_share=share,
@@ -334,7 +326,7 @@ def pending(plan: Iterable[Encounter], log: CampaignLog) -> list[Encounter]:
 
 
 def run_campaign(
-    client: Client,
+    client: Client | None,
     config: SafecaseConfig,
     plan: Sequence[Encounter],
     log: CampaignLog,
@@ -343,11 +335,12 @@ def run_campaign(
     oracle: bool = False,
     shadow: bool = True,
 ) -> list[CampaignRow]:
-    """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster (with the
-    oracle's closed loop too when ``oracle``, without the shadow oracle unless ``shadow``:
-    :func:`run_encounter`), appending each row to
-    ``log`` as it arrives (a failure as a :func:`failed_row`); all of the log's rows, resumed
-    ones first (kept as they were written, with or without the oracle)."""
+    """Run every encounter of ``plan`` that ``log`` lacks on ``client``'s cluster (without a
+    client: here, one after another; :func:`pipeline.distributed.as_done`), with the oracle's
+    closed loop too when ``oracle`` and without the shadow oracle unless ``shadow``
+    (:func:`run_encounter`), appending each row to ``log`` as it arrives (a failure as a
+    :func:`failed_row`, and ``on_row`` told of each); all of the log's rows, resumed ones first
+    (kept as they were written, with or without the oracle)."""
     from pipeline.distributed import TaskFailed, as_done  # Dask loads only for a campaign
 
     todo = pending(plan, log)
