@@ -1,0 +1,112 @@
+"""What a runtime cycle reports besides its command: the observation of a cycle without a
+scan or a driver, its CPU and stage times, the cycle count, a failing perception's STOP and the
+stamp of the STOP an unrecordable cycle gives (SR-RUN-2, SR-TIM-3, SR-AUD-1)."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from pipeline.classify.model import Classifier
+from pipeline.config import default_config
+from pipeline.perception import Perceived, Stopwatch
+from pipeline.types import Action, Frame, Scan
+from safety.runtime import CycleInput, Runtime
+
+CONFIG = default_config()
+CODE = ["safety/runtime.py"]
+
+
+@pytest.fixture(scope="module")
+def classifier() -> Classifier:
+    """The committed model, loaded once."""
+    return Classifier.from_config(CONFIG.classify)
+
+
+def _scan(stamp_s: float) -> Scan:
+    angles = np.linspace(-math.pi, math.pi, 1080, endpoint=False)
+    return Scan(stamp_s, angles, np.full(1080, np.inf))
+
+
+@pytest.mark.requirement("SR-AUD-1", kind="example", code=CODE)
+def test_a_cycle_without_a_scan_or_a_driver_observes_none_of_them(
+    classifier: Classifier,
+) -> None:
+    """No scan: no beams counted (so the blinded-scanner monitor has nothing to judge) and no
+    driver error; the STOP is for the missing scan alone."""
+    out = Runtime(CONFIG, classifier=classifier).step(
+        CycleInput.standing(None, 10.1, CONFIG, charge_s=0.01)
+    )
+    observation = out.record.observation
+    assert (observation.n_beams, observation.n_below_min) == (0, 0)
+    assert observation.driver_error == ""
+    assert observation.driver_state is None
+    assert out.command.action is Action.STOP
+    assert not any("below the minimum range" in r for r in out.command.reasons)
+
+
+@pytest.mark.requirement("SR-TIM-3", kind="example", code=CODE)
+def test_a_cycle_reports_its_cpu_time_and_stage_times_and_counts_itself(
+    classifier: Classifier,
+) -> None:
+    rt = Runtime(CONFIG, classifier=classifier)
+    for k in range(3):
+        before = time.perf_counter()
+        out = rt.step(CycleInput.standing(_scan(10.0 + 0.1 * k), 10.1 + 0.1 * k, CONFIG))
+        wall_s = time.perf_counter() - before
+        # thread CPU time of this one thread: positive and never more than the wall clock
+        assert 0.0 < out.cpu_s <= wall_s
+        assert out.record.timings_s == out.wall_s
+        assert {"cluster", "decide"} <= set(out.wall_s)
+    assert rt.cycles == 3
+
+
+class _Broken:
+    """A perception chain that fails with an error that is not a stage's."""
+
+    def perceive(
+        self,
+        frame: Frame,
+        *,
+        now_s: Callable[[], float] | None = None,
+        watch: Stopwatch | None = None,
+    ) -> Perceived:
+        raise RuntimeError("the chain broke")
+
+    def reset(self) -> None:
+        pass
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_a_perception_that_raises_stops_the_robot_and_the_cycle_is_recorded(
+    classifier: Classifier,
+) -> None:
+    rt = Runtime(CONFIG, classifier=classifier, perception=_Broken())
+    out = rt.step(CycleInput.standing(_scan(10.0), 10.1, CONFIG, charge_s=0.01))
+    assert out.command.action is Action.STOP
+    assert any("RuntimeError: the chain broke" in r for r in out.command.reasons)
+    assert out.record.inputs["scan"] is not None
+    assert out.envelopes is None
+    assert rt.cycles == 1
+
+
+class _FullDisk:
+    """An audit writer whose disk is full."""
+
+    def append(self, record: object) -> None:
+        raise OSError(28, "No space left on device")
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_the_stop_of_an_unrecordable_cycle_keeps_the_decision_stamp(
+    classifier: Classifier,
+) -> None:
+    rt = Runtime(CONFIG, classifier=classifier, writer=_FullDisk())  # type: ignore[arg-type]
+    out = rt.step(CycleInput.standing(_scan(10.0), 10.1, CONFIG, charge_s=0.01))
+    assert out.command.action is Action.STOP
+    assert out.command.stamp_s == out.decision.command.stamp_s
+    assert out.command.stamp_s == pytest.approx(10.11)
