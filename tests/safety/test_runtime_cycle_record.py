@@ -14,7 +14,8 @@ import pytest
 from pipeline.classify.model import Classifier
 from pipeline.config import default_config
 from pipeline.perception import Perceived, Stopwatch
-from pipeline.types import Action, Frame, Scan
+from pipeline.types import Action, FloatArray, Frame, Scan
+from safety.geometry.path import PathAhead
 from safety.runtime import CycleInput, Runtime
 
 CONFIG = default_config()
@@ -110,3 +111,31 @@ def test_the_stop_of_an_unrecordable_cycle_keeps_the_decision_stamp(
     assert out.command.action is Action.STOP
     assert out.command.stamp_s == out.decision.command.stamp_s
     assert out.command.stamp_s == pytest.approx(10.11)
+
+
+def _curving(step_m: float = 0.1, n: int = 40) -> PathAhead:
+    """A path from the origin, heading 0 there, turning left at 0.5 rad/m."""
+    arc = np.arange(n, dtype=np.float64) * step_m
+    theta: FloatArray = 0.5 * arc
+    # exact positions of the circular arc of radius 2 m
+    return PathAhead(arc, 2.0 * np.sin(theta), 2.0 * (1.0 - np.cos(theta)), theta)
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_the_envelopes_are_placed_at_the_path_start_not_further_along(
+    classifier: Classifier,
+) -> None:
+    """The envelopes are moved into the robot's frame at the path's first pose; where the path
+    goes after it must not move them (a curving path and a straight one from the same pose)."""
+    ranges = np.full(1080, np.inf)
+    ranges[600:612] = 3.0  # an object about 3 m away, left of ahead
+    scan = _scan(10.0)
+    scan = Scan(scan.stamp_s, scan.angles_rad, ranges)
+    curving = CycleInput(scan, 10.1, (0.0, 0.0, 0.0), _curving(), charge_s=0.01)
+    straight = CycleInput.standing(scan, 10.1, CONFIG, charge_s=0.01)
+    bent = Runtime(CONFIG, classifier=classifier).step(curving).envelopes
+    plain = Runtime(CONFIG, classifier=classifier).step(straight).envelopes
+    assert bent is not None
+    assert plain is not None
+    assert bent.polygons.n > 0
+    np.testing.assert_array_equal(bent.polygons.vertices_m, plain.polygons.vertices_m)
