@@ -139,3 +139,23 @@ def test_the_envelopes_are_placed_at_the_path_start_not_further_along(
     assert plain is not None
     assert bent.polygons.n > 0
     np.testing.assert_array_equal(bent.polygons.vertices_m, plain.polygons.vertices_m)
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_only_points_in_no_kept_cluster_are_loose(classifier: Classifier) -> None:
+    """An object 3 m ahead (one kept cluster, index 0) and a lone point 1.5 m ahead (noise): the
+    path check reads the lone point as loose and the object's points as the object."""
+    scan = _scan(10.0)
+    ahead = int(np.argmin(np.abs(scan.angles_rad)))
+    ranges = np.full(1080, np.inf)
+    ranges[ahead - 6 : ahead + 6] = 3.0
+    ranges[ahead + 15] = 1.5
+    out = Runtime(CONFIG, classifier=classifier).step(
+        CycleInput.standing(Scan(10.0, scan.angles_rad, ranges), 10.1, CONFIG, charge_s=0.01)
+    )
+    assert out.detail is not None
+    assert out.detail.perceived is not None
+    assert out.detail.perceived.clusters.point_labels.tolist() == [0] * 12 + [-1]
+    path = out.record.inputs["path"]
+    assert path["loose_points_on_path"] == 1
+    assert path["nearest_loose_point_m"] < 1.5
