@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from pipeline.classify.model import Classifier
-from pipeline.config import default_config
+from pipeline.config import default_config, overridden
 from pipeline.perception import Perceived, Stopwatch
+from pipeline.static_map import StaticMap
 from pipeline.types import Action, FloatArray, Frame, Scan
 from safety.geometry.path import PathAhead
 from safety.runtime import CycleInput, Runtime
@@ -159,3 +160,41 @@ def test_only_points_in_no_kept_cluster_are_loose(classifier: Classifier) -> Non
     path = out.record.inputs["path"]
     assert path["loose_points_on_path"] == 1
     assert path["nearest_loose_point_m"] < 1.5
+
+
+def _object_ahead(distance_m: float = 3.0) -> Scan:
+    """One small object ``distance_m`` straight ahead (12 beams)."""
+    scan = _scan(10.0)
+    ahead = int(np.argmin(np.abs(scan.angles_rad)))
+    ranges = np.full(1080, np.inf)
+    ranges[ahead - 6 : ahead + 6] = distance_m
+    return Scan(10.0, scan.angles_rad, ranges)
+
+
+@pytest.mark.requirement("SR-AVL-8", kind="example", code=CODE)
+def test_an_object_of_unknown_motion_on_the_map_is_counted_in_the_record(
+    classifier: Classifier,
+) -> None:
+    """A new cluster (unknown motion: not yet confirmed) lying on a mapped rack face is
+    counted as unknown on the map; off the map it is not."""
+    rack = np.array([[2.9, -0.5], [3.3, -0.5], [3.3, 0.5], [2.9, 0.5]])
+    inp = CycleInput.standing(_object_ahead(), 10.1, CONFIG, charge_s=0.01)
+    mapped = StaticMap.from_parts([rack], 0.05, 0.1)
+    elsewhere = StaticMap.from_parts([rack + np.array([0.0, 3.0])], 0.05, 0.1)
+    on = Runtime(CONFIG, classifier=classifier, static_map=mapped).step(inp)
+    off = Runtime(CONFIG, classifier=classifier, static_map=elsewhere).step(inp)
+    assert on.record.inputs["path"]["unknown_on_map"] == 1
+    assert off.record.inputs["path"]["unknown_on_map"] == 0
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_the_planner_check_records_its_candidates_and_the_blocked_ones(
+    classifier: Classifier,
+) -> None:
+    config = overridden(CONFIG, {"runtime": {"planner_check": True}})
+    out = Runtime(config, classifier=classifier).step(
+        CycleInput.standing(_object_ahead(1.0), 10.1, config, charge_s=0.01)
+    )
+    planner = out.record.inputs["planner"]
+    assert set(planner) == {"candidates", "blocked"}
+    assert 0 < planner["blocked"] <= planner["candidates"]
