@@ -197,4 +197,7 @@ def test_the_planner_check_records_its_candidates_and_the_blocked_ones(
     )
     planner = out.record.inputs["planner"]
     assert set(planner) == {"candidates", "blocked"}
-    assert 0 < planner["blocked"] <= planner["candidates"]
+    # one candidate arc per configured speed and yaw rate; an unconfirmed object 1 m ahead
+    # (a disc of any direction) blocks more than one of them
+    assert planner["candidates"] == config.geometry.n_speeds * config.geometry.n_yaw_rates
+    assert 1 < planner["blocked"] <= planner["candidates"]
