@@ -7,16 +7,19 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from pipeline.classify.model import Classifier
 from pipeline.config import default_config, overridden
-from pipeline.perception import Perceived, Stopwatch
-from pipeline.static_map import StaticMap
+from pipeline.perception import Perceived, Perception, Stopwatch
+from pipeline.static_map import StaticMap, map_from_config
 from pipeline.types import Action, FloatArray, Frame, Scan
 from safety.geometry.path import PathAhead
+from safety.model.stopping import StoppingParams
 from safety.runtime import CycleInput, Runtime
 
 CONFIG = default_config()
@@ -201,3 +204,28 @@ def test_the_planner_check_records_its_candidates_and_the_blocked_ones(
     # (a disc of any direction) blocks more than one of them
     assert planner["candidates"] == config.geometry.n_speeds * config.geometry.n_yaw_rates
     assert 1 < planner["blocked"] <= planner["candidates"]
+
+
+@pytest.mark.requirement("SR-RUN-2", kind="example", code=CODE)
+def test_a_runtime_uses_what_it_is_given_and_the_configured_rest(
+    classifier: Classifier, tmp_path: Path
+) -> None:
+    """Given stopping parameters and a classifier, the runtime and its perception chain use
+    those objects; given none, the configuration's (``map.file``'s map among them)."""
+    rack = np.array([[2.9, -0.5], [3.3, -0.5], [3.3, 0.5], [2.9, 0.5]])
+    site = StaticMap.from_parts([rack], 0.05, 0.1)
+    config = overridden(CONFIG, {"map": {"file": str(site.write_nav2(tmp_path / "site.yaml"))}})
+    params = replace(StoppingParams.from_config(config), perception_latency_s=0.5)
+    given = Runtime(config, params=params, classifier=classifier)
+    assert given.params is params
+    assert given.classifier is classifier
+    assert isinstance(given.perception, Perception)
+    assert given.perception.classifier is classifier
+    assert given.static_map is not None
+    configured = map_from_config(config)
+    assert configured is not None
+    assert np.array_equal(given.static_map.covered, configured.covered)
+    assert given.cycles == 0
+    plain = Runtime(CONFIG)
+    assert plain.params == StoppingParams.from_config(CONFIG)
+    assert plain.static_map is None
