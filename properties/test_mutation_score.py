@@ -66,6 +66,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/foxglove.py",
     "safety/foxglove_scene.py",
     "safety/foxglove_view.py",
+    "safety/runtime.py",
     "safety/nav2/geometry.py",
     "safety/nav2/export.py",
     "safety/nav2/obligations.py",
