@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
+from pipeline.errors import DegeneratePolygonError
 from safety.geometry.polygons import (
     HULL_HALFPLANE,
     convex_hull_batch,
@@ -97,3 +98,42 @@ def test_a_pose_given_in_single_precision_is_applied_in_double() -> None:
     moved64 = transform_polygons(polygons, *(float(v) for v in pose32))
     np.testing.assert_array_equal(moved32.vertices_m, moved64.vertices_m)
     assert moved32.vertices_m.dtype == np.float64
+
+
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=CODE)
+def test_points_in_single_precision_are_hulled_in_double() -> None:
+    """float32 coordinates give the hull and slack of the same values as float64 (the
+    orientation tests are made in double precision)."""
+    points = np.vstack([TRIANGLE, 0.5 * (TRIANGLE[0] + TRIANGLE[1])]) + 0.1
+    single = points.astype(np.float32)
+    wide = single.astype(np.float64)
+    got = convex_hull_batch(single[None, :, 0], single[None, :, 1])
+    want = convex_hull_batch(wide[None, :, 0], wide[None, :, 1])
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert got[2].dtype == np.float64
+    assert got[2][0] > 0.0
+
+
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=CODE)
+def test_a_set_of_one_point_is_degenerate_and_named_with_its_point() -> None:
+    with pytest.raises(DegeneratePolygonError) as caught:
+        convex_hull_batch(np.array([[0.0], [1.5]]), np.array([[0.0], [-2.0]]), what="body")
+    assert str(caught.value) == (
+        "body 0: all points coincide at (0.0, 0.0); a polygon needs at least 3 distinct points"
+    )
+
+
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=CODE)
+def test_a_point_outside_by_less_than_rounding_is_covered_by_slack_not_made_a_vertex() -> None:
+    """Far from the origin (magnitude 1010 m) a point one ulp outside the middle of a
+    diamond's edge is within that edge's rounding threshold (which grows with the magnitude):
+    it is not made a vertex, and the diamond gets slack that holds it."""
+    mid = float(np.nextafter(1002.5, -np.inf))  # one ulp outside the lower-left edge
+    xs = np.array([[1000.0, 1005.0, 1010.0, 1005.0, mid]])
+    ys = np.array([[1005.0, 1000.0, 1005.0, 1010.0, mid]])
+    order, counts, slack = convex_hull_batch(xs, ys)
+    assert counts.tolist() == [4]
+    assert 4 not in order[0].tolist()
+    outside_m = (2 * 1002.5 - 2 * mid) / math.sqrt(2.0)  # distance beyond the edge x + y = 2005
+    assert slack[0] >= outside_m > 0.0
