@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from pipeline.errors import DegeneratePolygonError
+from pipeline.errors import DegeneratePolygonError, GeometryError
 from safety.geometry.polygons import (
     HULL_HALFPLANE,
     convex_hull_batch,
@@ -137,3 +137,36 @@ def test_a_point_outside_by_less_than_rounding_is_covered_by_slack_not_made_a_ve
     assert 4 not in order[0].tolist()
     outside_m = (2 * 1002.5 - 2 * mid) / math.sqrt(2.0)  # distance beyond the edge x + y = 2005
     assert slack[0] >= outside_m > 0.0
+
+
+@pytest.mark.requirement("SR-SAT-3", kind="example", code=CODE)
+def test_a_point_inside_by_less_than_rounding_is_covered_by_slack() -> None:
+    """A point one ulp inside the middle of the same diamond's edge is not certainly inside
+    (within half the edge's rounding threshold): the diamond gets slack for it."""
+    mid = float(np.nextafter(1002.5, np.inf))
+    xs = np.array([[1000.0, 1005.0, 1010.0, 1005.0, mid]])
+    ys = np.array([[1005.0, 1000.0, 1005.0, 1010.0, mid]])
+    _, counts, slack = convex_hull_batch(xs, ys)
+    assert counts.tolist() == [4]
+    assert slack[0] > 0.0
+    clear = convex_hull_batch(xs[:, :4], ys[:, :4])[2]
+    assert clear.tolist() == [0.0]
+
+
+@pytest.mark.requirement("SR-SAT-4", kind="example", code=CODE)
+@pytest.mark.parametrize("as_list", [False, True])
+def test_single_precision_vertices_give_double_precision_polygons(as_list: bool) -> None:
+    single = np.array([TRIANGLE + 0.1], dtype=np.float32)
+    wide = single.astype(np.float64)
+    got = convex_polygons(list(single) if as_list else single)
+    want = convex_polygons(list(wide) if as_list else wide)
+    assert got.vertices_m.dtype == np.float64
+    np.testing.assert_array_equal(got.vertices_m, want.vertices_m)
+    np.testing.assert_array_equal(got.slack_m, want.slack_m)
+
+
+@pytest.mark.requirement("SR-SAT-4", kind="example", code=CODE)
+def test_counts_with_a_list_of_polygons_are_refused() -> None:
+    with pytest.raises(GeometryError) as caught:
+        convex_polygons([TRIANGLE], counts=[3])
+    assert str(caught.value) == "convex_polygons: counts apply to an (N, K, 2) array only"
