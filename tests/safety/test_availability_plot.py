@@ -14,6 +14,7 @@ from matplotlib.patches import Rectangle
 from pipeline.config import SafecaseConfig
 from pipeline.sources.sim.ego import ConstantSpeed
 from pipeline.sources.sim.scenarios import make_simulation
+from properties.figures import in_upper_right
 from safety.availability import Campaign, Comparison, Shadow
 from safety.availability_plot import NUISANCE_TARGET, PROGRESS_TARGET, campaign_figure
 from safety.run import RunSummary
@@ -129,3 +130,24 @@ def test_a_long_campaign_widens_the_figure(safecase_config: SafecaseConfig) -> N
     one = _comparison(safecase_config, runtime, 0, (0.5, 1.0, 0.5))
     fig = campaign_figure(Campaign([one] * 12))
     assert tuple(fig.get_size_inches()) == pytest.approx((0.55 * 12 + 3, 6.5))
+
+
+@pytest.mark.requirement("SR-AVL-1", kind="example", code=CODE)
+def test_the_figure_is_laid_out_for_reading(safecase_config: SafecaseConfig) -> None:
+    """What a reader of docs/ sees beyond the bars: run labels turned upright in small type,
+    the legends in the upper right corner in small type, the reference lines drawn thin."""
+    runtime = Runtime(safecase_config)
+    # three runs whose bars fill the upper right, where the best place would not put a legend
+    campaign = Campaign(
+        [_comparison(safecase_config, runtime, s, (1.0, 1.0, 1.0)) for s in (0, 6, 12)]
+    )
+    fig = campaign_figure(campaign)
+    fig.canvas.draw()
+    for ax in fig.axes:
+        for label in ax.get_xticklabels():
+            assert (label.get_fontsize(), label.get_rotation()) == (6.0, 90.0)
+        legend = ax.get_legend()
+        assert legend is not None
+        assert {text.get_fontsize() for text in legend.get_texts()} == {7.0}
+        assert in_upper_right(ax)
+        assert {line.get_linewidth() for line in ax.get_lines()} == {1.0}

@@ -17,6 +17,7 @@ from pipeline.config import SafecaseConfig
 from pipeline.sources.sim.ego import ConstantSpeed
 from pipeline.sources.sim.scenarios import make_simulation
 from pipeline.sources.sim.simulation import SimResult
+from properties.figures import in_upper_right
 from safety.run import RunSummary, contact_speeds
 from safety.run_plot import run_figure
 
@@ -179,13 +180,6 @@ def test_a_run_without_objects_has_no_separation_legend(safecase_config: Safecas
     assert bottom.get_lines() == []
 
 
-def _in_upper_right(ax: Axes) -> bool:
-    legend = ax.get_legend()
-    assert legend is not None
-    box, frame = legend.get_window_extent(), ax.get_window_extent()
-    return bool(box.x1 > frame.x1 - 0.1 * frame.width and box.y1 > frame.y1 - 0.1 * frame.height)
-
-
 @pytest.mark.requirement("SR-RUN-1", kind="example", code=CODE)
 def test_the_figure_is_laid_out_for_reading(safecase_config: SafecaseConfig) -> None:
     """What a reader of docs/ sees beyond the series: the size, one time axis for both panels,
@@ -212,7 +206,7 @@ def test_the_figure_is_laid_out_for_reading(safecase_config: SafecaseConfig) -> 
             legend = ax.get_legend()
             assert legend is not None
             assert {text.get_fontsize() for text in legend.get_texts()} == {8.0}
-            assert _in_upper_right(ax)
+            assert in_upper_right(ax)
     (contact,) = bottom.get_lines()[len(sim.world.objects) :]
     assert contact.get_linewidth() == 1
     (note,) = bottom.texts
