@@ -172,3 +172,20 @@ def test_a_campaign_without_a_cluster_logs_each_row_and_resumes(
     assert rows[3].nuisance_cycles is None
     with CampaignLog.open(path, safecase_config) as log:
         assert log.rows == rows
+
+
+class _RefusingClient:
+    """A cluster client that refuses every task (stands in for a Dask client)."""
+
+    def submit(self, *args: object, **kwargs: object) -> None:
+        raise RuntimeError("submitted to the cluster")
+
+
+@pytest.mark.requirement("SR-RUN-8", kind="example", code=["safety/campaign.py"])
+def test_a_campaign_given_a_client_hands_its_encounters_to_it(
+    safecase_config: SafecaseConfig, tmp_path: Path
+) -> None:
+    with CampaignLog.open(tmp_path / "c.jsonl", safecase_config) as log:
+        with pytest.raises(RuntimeError, match="submitted to the cluster"):
+            run_campaign(_RefusingClient(), safecase_config, [SHORT], log)  # type: ignore[arg-type]
+        assert log.rows == []
