@@ -67,6 +67,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/foxglove_scene.py",
     "safety/foxglove_view.py",
     "safety/runtime.py",
+    "safety/campaign.py",
     "safety/nav2/geometry.py",
     "safety/nav2/export.py",
     "safety/nav2/obligations.py",
