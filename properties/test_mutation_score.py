@@ -68,6 +68,7 @@ CLAIMED: tuple[str, ...] = (
     "safety/foxglove_view.py",
     "safety/runtime.py",
     "safety/campaign.py",
+    "safety/geometry/polygons.py",
     "safety/nav2/geometry.py",
     "safety/nav2/export.py",
     "safety/nav2/obligations.py",
