@@ -156,13 +156,17 @@ def test_a_point_inside_by_less_than_rounding_is_covered_by_slack() -> None:
 @pytest.mark.requirement("SR-SAT-4", kind="example", code=CODE)
 @pytest.mark.parametrize("as_list", [False, True])
 def test_single_precision_vertices_give_double_precision_polygons(as_list: bool) -> None:
-    single = np.array([TRIANGLE + 0.1], dtype=np.float32)
+    """With an edge's midpoint among the points the hull's slack is computed, and float32
+    arithmetic would give another value: the polygons of the float64 values."""
+    points = np.vstack([TRIANGLE, 0.5 * (TRIANGLE[0] + TRIANGLE[1])]) + 0.1
+    single = np.array([points], dtype=np.float32)
     wide = single.astype(np.float64)
     got = convex_polygons(list(single) if as_list else single)
     want = convex_polygons(list(wide) if as_list else wide)
     assert got.vertices_m.dtype == np.float64
     np.testing.assert_array_equal(got.vertices_m, want.vertices_m)
     np.testing.assert_array_equal(got.slack_m, want.slack_m)
+    assert got.slack_m[0] > 0.0
 
 
 @pytest.mark.requirement("SR-SAT-4", kind="example", code=CODE)
